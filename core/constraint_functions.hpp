@@ -1,0 +1,52 @@
+// Constraint functions C(x) and their gradients, one pure function per kind. Solvers project with
+// them, metrics measure with them: the same code whatever solver produced the state.
+//
+// Each function returns the value and the gradient with respect to each particle it touches.
+// `valid` is false when the gradient is undefined at this configuration (coincident particles,
+// a degenerate triangle, a dihedral angle at exactly 0 or pi); C is still reported.
+#pragma once
+
+#include <array>
+
+#include "core/model.hpp"
+#include "core/types.hpp"
+
+namespace pbdbench {
+
+struct ConstraintEval {
+  double C = 0.0;                // constraint value, units of the kind
+  std::array<Vec3, 4> grad{};    // dC/dx_i for the first arity entries
+  bool valid = true;             // gradient defined
+};
+
+// C = |x1 - x0| - rest.                                       Mueller et al. 2007, sec. 3.3.
+ConstraintEval eval_distance(const Vec3& x0, const Vec3& x1, double rest);
+
+// Signed volume (1/6) (x1-x0) . ((x2-x0) x (x3-x0)).
+double tet_signed_volume(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3);
+
+// C = tet_signed_volume(x0..x3) - rest.                        Mueller et al. 2007, sec. 4.4.
+// grad_1 = (1/6) (x2-x0) x (x3-x0), grad_2 = (1/6) (x3-x0) x (x1-x0),
+// grad_3 = (1/6) (x1-x0) x (x2-x0), grad_0 = -(grad_1 + grad_2 + grad_3).
+ConstraintEval eval_volume(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,
+                           double rest);
+
+// Dihedral angle acos(n1 . n2) in [0, pi] of the triangles (x0, x1, x2) and (x0, x1, x3),
+// n1 = unit((x1-x0) x (x2-x0)), n2 = unit((x1-x0) x (x3-x0)).
+double dihedral_angle(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3);
+
+// C = dihedral_angle(x0..x3) - rest.              Mueller et al. 2007, sec. 4.2 and appendix A.
+// The gradient is -grad(n1.n2) / sqrt(1 - (n1.n2)^2): undefined (valid = false) when
+// 1 - (n1.n2)^2 < 1e-12 or a triangle is degenerate.
+ConstraintEval eval_bending(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,
+                            double rest);
+
+// Evaluate a model constraint on positions x (n x 3).
+ConstraintEval eval_constraint(const Constraint& c, const Points& x);
+
+// The error of a constraint as the metrics report it: |C| / |rest| for distance and volume when
+// rest != 0 (relative, dimensionless), |C| otherwise (absolute: m or m^3); |C| in radians for
+// bending.
+double normalized_error(const Constraint& c, double C);
+
+}  // namespace pbdbench

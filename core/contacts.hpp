@@ -1,0 +1,48 @@
+// Contacts: inequality constraints C(x) >= 0 between particles and colliders, or between two
+// particles. They are found anew each step from the positions a solver predicts; the same
+// finder serves the metrics (penetration depth and count) with margin 0.
+#pragma once
+
+#include <vector>
+
+#include "core/constraint_functions.hpp"
+#include "core/model.hpp"
+
+namespace pbdbench {
+
+enum class ContactKind : std::uint8_t { Plane, Sphere, Particle };
+
+const char* to_string(ContactKind kind);  // "plane", "sphere", "particle"
+
+struct Contact {
+  ContactKind kind = ContactKind::Plane;
+  int a = -1;  // the particle
+  int b = -1;  // Plane: index into Model::planes; Sphere: into Model::spheres;
+               // Particle: the second particle (a < b)
+};
+
+// All candidate contacts whose C(x) < margin, for particles with inv_mass > 0 (and, for particle
+// pairs, at least one of them dynamic), at time t (moving spheres). Particle pairs joined by a
+// constraint are skipped. The order is deterministic: planes, then spheres, then particle pairs,
+// each sorted by (a, b). Particle pairs are found with a uniform grid, not by testing all pairs.
+std::vector<Contact> find_contacts(const Model& model, const Points& x, double t, double margin);
+
+// Evaluate a contact (C >= 0 is separated; C < 0 is penetration, in metres). Uses the unit plane
+// normal. grad[0] is with respect to particle a; grad[1] with respect to particle b for particle
+// contacts.
+//   Plane:    C = (n . x_a + offset) / |n| - r_a
+//   Sphere:   Outside: |x_a - c(t)| - (R + r_a);  Inside/Bowl: (R - r_a) - |x_a - c(t)|
+//   Particle: C = |x_a - x_b| - (r_a + r_b)
+ConstraintEval eval_contact(const Model& model, const Contact& contact, const Points& x, double t);
+
+// Restitution and friction coefficients that apply to a contact.
+double contact_restitution(const Model& model, const Contact& contact);
+double contact_friction(const Model& model, const Contact& contact);
+
+// Velocity of the collider surface at the contact (m/s): zero for planes and fixed spheres, the
+// sphere's motion velocity for moving spheres, the other particle's velocity for particle pairs
+// (taken from v).
+Vec3 contact_surface_velocity(const Model& model, const Contact& contact, const Points& v,
+                              double t);
+
+}  // namespace pbdbench

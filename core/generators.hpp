@@ -1,0 +1,103 @@
+// Scene generators: each appends particles, topology and constraints to a Model and returns the
+// range of particles it added, so a scene can combine several parts. Pure functions of their
+// specs; no randomness except where a spec carries a seed.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "core/model.hpp"
+
+namespace pbdbench {
+
+struct ParticleRange {
+  int begin = 0;  // first particle added
+  int end = 0;    // one past the last
+  int size() const { return end - begin; }
+};
+
+// Material parameters of one constraint group (copied into each Constraint).
+struct ConstraintParams {
+  double compliance = 0.0;  // alpha (units of C^2/J; m/N for distance), >= 0
+  double stiffness = 1.0;   // PBD k in [0, 1]
+  double damping = 0.0;     // XPBD beta, s, >= 0
+};
+
+// One free particle.
+int add_particle(Model& model, const Vec3& position, double mass, double radius);
+
+// A chain of `links` distance constraints (group "link") joining links+1 particles laid out from
+// `top` along the unit vector `direction`, each link `link_length` long. Every particle has
+// `mass` except the last, which has `end_mass` when end_mass > 0. With pin_top the first particle
+// is pinned (inv_mass 0 and a static Attachment). A pendulum is a chain of one link.
+struct ChainSpec {
+  int links = 19;
+  double link_length = 0.1;               // m
+  Vec3 top = Vec3::Zero();                // m
+  Vec3 direction = Vec3(0.0, -1.0, 0.0);  // unit
+  double mass = 1.0;                      // kg per particle
+  double end_mass = 0.0;                  // kg, 0 = same as mass
+  double radius = 0.01;                   // m
+  bool pin_top = true;
+  ConstraintParams link;
+};
+ParticleRange add_chain(Model& model, const ChainSpec& spec);
+
+// A rectangular cloth of nx * ny particles (particle (i, j) has index begin + j * nx + i) spanning
+// width along the first axis of `plane` and height along the second, from `origin`:
+//   plane "xz": x = origin + (i w/(nx-1), 0, j h/(ny-1))  (horizontal for gravity along -y)
+//   plane "xy": x = origin + (i w/(nx-1), -j h/(ny-1), 0) (hanging, row j = 0 on top)
+// Constraints: "stretch" (grid edges), "shear" (both diagonals of each cell) when shear,
+// "bending": dihedral (one per interior triangle edge) or distance between particles two apart
+// along each grid line, when bending. Triangles: two per cell, all wound the same way.
+// Total mass `mass` spread evenly over the particles.
+enum class BendingModel : std::uint8_t { Dihedral, Distance };
+struct ClothSpec {
+  int nx = 64, ny = 64;
+  double width = 1.0, height = 1.0;  // m
+  Vec3 origin = Vec3::Zero();        // m
+  std::string plane = "xz";          // "xz" or "xy"
+  double mass = 1.0;                 // kg, total
+  double radius = 0.005;             // m per particle
+  bool shear = true;
+  bool bending = true;
+  BendingModel bending_model = BendingModel::Dihedral;
+  ConstraintParams stretch, shear_params, bending_params;
+};
+ParticleRange add_cloth(Model& model, const ClothSpec& spec);
+
+// A box of cells[0] x cells[1] x cells[2] hexahedral cells, each split into tetrahedra (6, sharing
+// the cell's main diagonal, or 5 with alternating orientation so neighbouring cells conform), all
+// positively oriented. Spans `size` from `origin`. Mass from density times each tet's volume,
+// lumped equally to its four vertices. Constraints: "edge" (distance on every unique tet edge)
+// when edges, "volume" (one per tet) when volumes. Surface triangles: the boundary faces, wound
+// outward; surface_closed = true.
+struct TetBlockSpec {
+  std::array<int, 3> cells{8, 2, 2};
+  Vec3 size = Vec3(1.0, 0.25, 0.25);  // m
+  Vec3 origin = Vec3::Zero();         // m, the minimum corner
+  double density = 1000.0;            // kg/m^3
+  double radius = 0.01;               // m per particle
+  int tets_per_cell = 6;              // 5 or 6
+  bool edges = true;
+  bool volumes = true;
+  ConstraintParams edge, volume;
+};
+ParticleRange add_tet_block(Model& model, const TetBlockSpec& spec);
+
+// count[0] x count[1] x count[2] spheres of `radius` on a cubic lattice of spacing
+// 2 radius (1 + gap) from `origin`, each displaced by a uniform random jitter in
+// [-jitter, jitter] m per axis drawn from `seed` (deterministic). Each has `mass`.
+struct PackedSpheresSpec {
+  std::array<int, 3> count{5, 5, 5};
+  double radius = 0.05;        // m
+  double gap = 0.05;           // fraction of the diameter left between neighbours
+  Vec3 origin = Vec3::Zero();  // m, centre of the first sphere
+  double mass = 0.1;           // kg each
+  double jitter = 0.0;         // m
+  std::uint64_t seed = 1;
+};
+ParticleRange add_packed_spheres(Model& model, const PackedSpheresSpec& spec);
+
+}  // namespace pbdbench

@@ -1,0 +1,177 @@
+#include "metrics/metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "core/constraint_functions.hpp"
+#include "core/contacts.hpp"
+
+namespace pbdbench {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+double total_tet_volume(const Model& model, const Points& x) {
+  double v = 0.0;
+  for (const auto& t : model.tets) v += tet_signed_volume(x.row(t[0]), x.row(t[1]), x.row(t[2]), x.row(t[3]));
+  return v;
+}
+
+// Enclosed volume of a closed, outward-wound surface: (1/6) sum x0 . (x1 x2).
+double enclosed_volume(const Model& model, const Points& x) {
+  double v = 0.0;
+  for (const auto& t : model.triangles) {
+    const Vec3 a = x.row(t[0]), b = x.row(t[1]), c = x.row(t[2]);
+    v += a.dot(b.cross(c));
+  }
+  return v / 6.0;
+}
+
+double max_distance_from_centroid(const Points& x) {
+  if (x.rows() == 0) return 0.0;
+  const Vec3 c = x.colwise().mean().transpose();
+  double d = 0.0;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) d = std::max(d, (Vec3(x.row(i)) - c).norm());
+  return d;
+}
+
+double relative_drift(double now, double start) {
+  return start != 0.0 ? (now - start) / std::abs(start) : kNaN;
+}
+
+}  // namespace
+
+MetricsBaseline measure_baseline(const Model& model, const State& initial) {
+  MetricsBaseline b;
+  b.tet_volume = model.tets.empty() ? kNaN : total_tet_volume(model, initial.x);
+  b.surface_volume = model.surface_closed ? enclosed_volume(model, initial.x) : kNaN;
+  b.extent = max_distance_from_centroid(initial.x);
+  return b;
+}
+
+Sample measure(const Model& model, const State& state, const MetricsBaseline& baseline) {
+  Sample s;
+  const Points& x = state.x;
+  const Points& v = state.v;
+  const int n = model.particle_count();
+
+  // Constraint error, overall and per group.
+  s.groups.assign(model.group_names.size(), GroupError{});
+  double sum_sq = 0.0;
+  for (const Constraint& c : model.constraints) {
+    const double err = normalized_error(c, eval_constraint(c, x).C);
+    GroupError& g = s.groups[c.group];
+    g.max = std::max(g.max, err);
+    g.rms += err * err;
+    ++g.count;
+    s.constraint_error_max = std::max(s.constraint_error_max, err);
+    sum_sq += err * err;
+    if (std::isnan(err)) s.constraint_error_max = kNaN;
+  }
+  for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
+  s.constraint_error_rms = model.constraints.empty() ? 0.0 : std::sqrt(sum_sq / model.constraints.size());
+
+  // Volume.
+  if (model.tets.empty()) {
+    s.tet_volume = kNaN;
+    s.volume_drift = kNaN;
+  } else {
+    s.tet_volume = total_tet_volume(model, x);
+    s.volume_drift = relative_drift(s.tet_volume, baseline.tet_volume);
+  }
+  if (model.surface_closed) {
+    s.surface_volume = enclosed_volume(model, x);
+    s.surface_volume_drift = relative_drift(s.surface_volume, baseline.surface_volume);
+  } else {
+    s.surface_volume = kNaN;
+    s.surface_volume_drift = kNaN;
+  }
+
+  // Energy and momentum of the dynamic particles.
+  for (int i = 0; i < n; ++i) {
+    const double w = model.inv_mass[static_cast<size_t>(i)];
+    if (w == 0.0) continue;
+    const double m = 1.0 / w;
+    const Vec3 xi = x.row(i), vi = v.row(i);
+    s.kinetic_energy += 0.5 * m * vi.squaredNorm();
+    s.potential_energy -= m * model.gravity.dot(xi);
+    s.linear_momentum += m * vi;
+    s.angular_momentum += m * xi.cross(vi);
+  }
+  for (const Constraint& c : model.constraints) {
+    if (c.compliance > 0.0) {
+      const double C = eval_constraint(c, x).C;
+      s.elastic_energy += C * C / (2.0 * c.compliance);
+    }
+  }
+  s.total_energy = s.kinetic_energy + s.potential_energy + s.elastic_energy;
+
+  // Explosion indicators.
+  s.finite = x.allFinite() && v.allFinite();
+  if (s.finite) {
+    double vmax2 = 0.0;
+    for (int i = 0; i < n; ++i) vmax2 = std::max(vmax2, v.row(i).squaredNorm());
+    s.max_speed = std::sqrt(vmax2);
+    s.extent = max_distance_from_centroid(x);
+  } else {
+    s.max_speed = kNaN;
+    s.extent = kNaN;
+  }
+
+  // Penetration (contacts in penetration at margin 0).
+  if (s.finite) {
+    for (const Contact& c : find_contacts(model, x, state.time, 0.0)) {
+      const double C = eval_contact(model, c, x, state.time).C;
+      if (C < 0.0) {
+        ++s.penetration_count;
+        s.penetration_max = std::max(s.penetration_max, -C);
+      }
+    }
+  } else {
+    s.penetration_max = kNaN;
+  }
+  return s;
+}
+
+std::string explosion_reason(const Model& model, const State& state, const Sample& sample,
+                             const ExplosionLimits& limits, const MetricsBaseline& baseline) {
+  std::ostringstream why;
+  const int n = model.particle_count();
+  if (!sample.finite) {
+    for (int i = 0; i < n; ++i) {
+      if (!state.x.row(i).allFinite()) {
+        why << "non-finite position of particle " << i;
+        return why.str();
+      }
+      if (!state.v.row(i).allFinite()) {
+        why << "non-finite velocity of particle " << i;
+        return why.str();
+      }
+    }
+    return "non-finite state";
+  }
+  if (sample.max_speed > limits.max_speed) {
+    why << "max speed " << sample.max_speed << " m/s exceeds limits.max_speed = " << limits.max_speed;
+    return why.str();
+  }
+  const double ref = std::max(baseline.extent, 1e-3);
+  if (sample.extent > limits.max_extent_ratio * ref) {
+    why << "extent " << sample.extent << " m exceeds limits.max_extent_ratio = "
+        << limits.max_extent_ratio << " times the initial " << ref << " m";
+    return why.str();
+  }
+  for (int i = 0; i < n; ++i) {
+    const double d = state.x.row(i).norm();
+    if (d > limits.max_distance) {
+      why << "particle " << i << " is " << d << " m from the origin, beyond limits.max_distance = "
+          << limits.max_distance;
+      return why.str();
+    }
+  }
+  return {};
+}
+
+}  // namespace pbdbench

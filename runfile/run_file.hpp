@@ -1,0 +1,81 @@
+// One HDF5 file per run. The layout is documented in results/README.md:
+//
+//   /                  attributes: format_version, status, status_reason, scenario,
+//                      scenario_file, solver, config (resolved TOML), dt, steps_planned,
+//                      steps_completed, exploded_step, exploded_time, wall_time, created,
+//                      pbdbench_version, git_commit, compiler, build_type, cxx_flags
+//   /series/<name>     one dataset per series_table() entry (+ per-group series), extendible,
+//                      chunked; attributes units, doc, deterministic
+//   /frames/time       (F,) s
+//   /frames/positions  (F, n, 3) m, chunked (1, n, 3), shuffle + gzip
+//   /model/...         rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),
+//                      triangles (T,3), tets (K,4), constraint_kind (m), constraint_particles
+//                      (m,4), constraint_rest (m), constraint_compliance (m),
+//                      constraint_stiffness (m), constraint_damping (m), constraint_group (m);
+//                      attribute group_names
+//
+// The writer flushes as it goes (every `flush_every_seconds` of wall time, and at every frame):
+// a run killed at any moment leaves a file that h5py opens, with status "incomplete" and every
+// series up to the last flush.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/model.hpp"
+#include "runfile/series.hpp"
+
+namespace pbdbench {
+
+enum class RunStatus { Incomplete, Complete, Exploded, Failed };
+const char* to_string(RunStatus status);  // "incomplete", "complete", "exploded", "failed"
+
+struct RunHeader {
+  std::string scenario;       // scenario name
+  std::string scenario_file;  // path of the scenario file
+  std::string solver;         // solver name
+  std::string config;         // the whole resolved configuration as TOML text
+  double dt = 0.0;            // s
+  long steps_planned = 0;
+};
+
+class RunFileWriter {
+ public:
+  // Creates (or truncates) the file, writes the header, the build's provenance and the model,
+  // sets status "incomplete" and flushes. Throws std::runtime_error naming the path on failure.
+  RunFileWriter(const std::filesystem::path& path, const RunHeader& header, const Model& model,
+                double flush_every_seconds = 0.5);
+  ~RunFileWriter();  // closes; the status stays "incomplete" unless finish() was called
+  RunFileWriter(const RunFileWriter&) = delete;
+  RunFileWriter& operator=(const RunFileWriter&) = delete;
+
+  void append(const SeriesRow& row);                // one row of every series
+  void append_frame(double time, const Points& x);  // one frame of positions
+  void flush();
+
+  // Records how the run ended and closes the file. For Exploded, exploded_step/time say when.
+  void finish(RunStatus status, const std::string& reason, long steps_completed,
+              double wall_time, long exploded_step = -1, double exploded_time = -1.0);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// A run file read back (compare, sweep, summary).
+struct RunFileData {
+  std::map<std::string, std::string> attributes;  // every string attribute of the root
+  std::map<std::string, double> numbers;          // every numeric scalar attribute of the root
+  std::map<std::string, std::vector<double>> series;  // width-1 series
+  std::map<std::string, Points> series3;              // width-3 series
+  std::vector<std::string> group_names;
+  std::string status() const;  // attributes["status"]
+};
+
+// Throws std::runtime_error naming the path when the file cannot be read.
+RunFileData read_run_file(const std::filesystem::path& path, bool with_series = true);
+
+}  // namespace pbdbench

@@ -1,0 +1,75 @@
+#include "solvers/options.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <sstream>
+
+namespace pbdbench {
+
+namespace {
+
+constexpr std::array<const char*, 5> kOrderNames = {"sequential", "reversed", "shuffled",
+                                                    "colored", "jacobi"};
+
+template <class T>
+std::string out_of_range(const char* field, T value, const char* relation, T bound) {
+  std::ostringstream s;
+  s << field << " = " << value << " is " << relation << " " << bound;
+  return s.str();
+}
+
+}  // namespace
+
+const char* to_string(ProjectionOrder order) {
+  return kOrderNames[static_cast<size_t>(order)];
+}
+
+bool parse_projection_order(const std::string& name, ProjectionOrder& out) {
+  for (size_t i = 0; i < kOrderNames.size(); ++i) {
+    if (name == kOrderNames[i]) {
+      out = static_cast<ProjectionOrder>(i);
+      return true;
+    }
+  }
+  return false;
+}
+
+const std::vector<std::string>& seed_departure_ids() {
+  static const std::vector<std::string> ids = {"D1", "D2", "D3", "D4", "D5",
+                                               "D6", "D7", "D8", "D9", "D10"};
+  return ids;
+}
+
+std::string SolverOptions::validate() const {
+  if (name != "pbd-seed" && name != "pbd" && name != "xpbd")
+    return "solver.name = '" + name + "' is not one of pbd-seed, pbd, xpbd";
+  if (iterations < 1) return out_of_range("solver.iterations", iterations, "below the minimum", 1);
+  if (iterations > 100000)
+    return out_of_range("solver.iterations", iterations, "above the maximum", 100000);
+  if (substeps < 1) return out_of_range("solver.substeps", substeps, "below the minimum", 1);
+  if (substeps > 100000)
+    return out_of_range("solver.substeps", substeps, "above the maximum", 100000);
+  if (!(jacobi_relaxation > 0.0))
+    return out_of_range("solver.jacobi_relaxation", jacobi_relaxation, "not above", 0.0);
+  if (!(jacobi_relaxation <= 2.0))
+    return out_of_range("solver.jacobi_relaxation", jacobi_relaxation, "above the maximum", 2.0);
+  if (!(contact_margin >= 0.0) || !std::isfinite(contact_margin))
+    return out_of_range("solver.contact_margin", contact_margin, "below the minimum", 0.0);
+  if (!(pbd_velocity_damping >= 0.0 && pbd_velocity_damping <= 1.0))
+    return "solver.pbd.velocity_damping = " + std::to_string(pbd_velocity_damping) +
+           " is outside [0, 1]";
+  if (!(seed_damping >= 0.0 && seed_damping <= 1.0))
+    return "solver.seed.damping = " + std::to_string(seed_damping) + " is outside [0, 1]";
+  if (!(seed_reference_dt > 0.0) || !std::isfinite(seed_reference_dt))
+    return out_of_range("solver.seed.reference_dt", seed_reference_dt, "not above", 0.0);
+  if (!(seed_restitution >= 0.0 && seed_restitution <= 1.0))
+    return "solver.seed.restitution = " + std::to_string(seed_restitution) + " is outside [0, 1]";
+  const auto& ids = seed_departure_ids();
+  for (const std::string& f : seed_fixes)
+    if (std::find(ids.begin(), ids.end(), f) == ids.end())
+      return "solver.seed.fixes: '" + f + "' is not a departure id (D1 ... D10)";
+  return {};
+}
+
+}  // namespace pbdbench

@@ -1,0 +1,59 @@
+// The one interface every solver implements, PBD family and (later) references alike: the runner,
+// the metrics and the run-file writer never ask which family they hold.
+//
+//   auto solver = make_solver(options, model);      // precomputation (colourings, ...)
+//   StepReport r = solver->step(model, state, dt);  // advance state by dt
+#pragma once
+
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/model.hpp"
+#include "core/state.hpp"
+#include "solvers/options.hpp"
+
+namespace pbdbench {
+
+// What one step did. Every field is logged as a series of the run file (runfile/series.hpp).
+struct StepReport {
+  int substeps = 0;           // substeps taken in this step
+  int iterations = 0;         // projection sweeps summed over substeps
+  int contacts = 0;           // contact constraints built (summed over substeps)
+  int active_contacts = 0;    // of those, the ones with C < 0 at some projection (summed)
+  int skipped = 0;            // projections skipped because the gradient was undefined or the
+                              // generalised mass was zero (summed over sweeps and substeps)
+  // XPBD residuals at the end of the step's last substep (Macklin et al. 2016, eqs. 8 and 9);
+  // NaN for solvers that do not define them.
+  double residual_g = std::numeric_limits<double>::quiet_NaN();  // |M (x - x~) - grad C^T lambda|_2, kg m
+  double residual_h = std::numeric_limits<double>::quiet_NaN();  // |C(x) + alpha~ lambda|_2, units of C
+  // Wall-clock time per phase, summed over substeps, in seconds.
+  double time_predict = 0.0;   // prediction (external forces), kinematic targets
+  double time_contacts = 0.0;  // contact generation
+  double time_project = 0.0;   // constraint projection sweeps
+  double time_velocity = 0.0;  // velocity update, damping, friction and restitution
+};
+
+class Solver {
+ public:
+  virtual ~Solver() = default;
+  // Advances `state` by dt seconds. Never changes the model. dt > 0.
+  virtual StepReport step(const Model& model, State& state, double dt) = 0;
+  // The registered name: "pbd-seed", "pbd", "xpbd".
+  virtual std::string name() const = 0;
+};
+
+struct SolverInfo {
+  std::string name;
+  std::string doc;  // one line
+};
+
+// Every registered solver, in a stable order.
+const std::vector<SolverInfo>& solver_catalog();
+
+// Builds the solver named options.name for this model. Throws std::invalid_argument naming the
+// field when options.validate() fails or the name is unknown.
+std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& model);
+
+}  // namespace pbdbench
