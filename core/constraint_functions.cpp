@@ -58,7 +58,7 @@ ConstraintEval eval_bending(const Vec3& x0, const Vec3& x1, const Vec3& x2, cons
   const Vec3 c1 = edge.cross(a), c2 = edge.cross(b);
   const double l1 = c1.norm(), l2 = c2.norm();
   if (!(l1 > 0.0) || !(l2 > 0.0)) {
-    e.C = (l1 > 0.0 && l2 > 0.0) ? 0.0 : -rest;
+    e.C = -rest;  // a degenerate triangle has no normal: report the angle as 0
     e.valid = false;
     return e;
   }

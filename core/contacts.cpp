@@ -91,20 +91,23 @@ void find_particle_pairs(const Model& model, const Points& x, double margin,
 std::vector<Contact> find_contacts(const Model& model, const Points& x, double t, double margin) {
   std::vector<Contact> out;
   const int n = model.particle_count();
-  for (int pi = 0; pi < static_cast<int>(model.planes.size()); ++pi) {
-    const PlaneCollider& plane = model.planes[static_cast<size_t>(pi)];
-    for (int a = 0; a < n; ++a) {
-      if (model.inv_mass[a] == 0.0) continue;
+  // Particle-major loops, so that each kind comes out sorted by (a, b) as documented.
+  for (int a = 0; a < n; ++a) {
+    if (model.inv_mass[a] == 0.0) continue;
+    for (int pi = 0; pi < static_cast<int>(model.planes.size()); ++pi) {
+      const PlaneCollider& plane = model.planes[static_cast<size_t>(pi)];
       if (plane_value(plane, x.row(a), model.radius[a]) < margin)
         out.push_back({ContactKind::Plane, a, pi});
     }
   }
   const Vec3 up = up_direction(model);
-  for (int si = 0; si < static_cast<int>(model.spheres.size()); ++si) {
-    const SphereCollider& s = model.spheres[static_cast<size_t>(si)];
-    const Vec3 c = sphere_center(model, s, t);
-    for (int a = 0; a < n; ++a) {
-      if (model.inv_mass[a] == 0.0) continue;
+  std::vector<Vec3> centers;
+  for (const SphereCollider& s : model.spheres) centers.push_back(sphere_center(model, s, t));
+  for (int a = 0; a < n; ++a) {
+    if (model.inv_mass[a] == 0.0) continue;
+    for (int si = 0; si < static_cast<int>(model.spheres.size()); ++si) {
+      const SphereCollider& s = model.spheres[static_cast<size_t>(si)];
+      const Vec3& c = centers[static_cast<size_t>(si)];
       const Vec3 xa = x.row(a);
       const double dist = (xa - c).norm();
       double C = 0.0;

@@ -72,7 +72,8 @@ ParticleRange add_cloth(Model& model, const ClothSpec& spec);
 // positively oriented. Spans `size` from `origin`. Mass from density times each tet's volume,
 // lumped equally to its four vertices. Constraints: "edge" (distance on every unique tet edge)
 // when edges, "volume" (one per tet) when volumes. Surface triangles: the boundary faces, wound
-// outward; surface_closed = true.
+// outward; surface_closed = true, or, when the model already had triangles, kept true only if
+// it was true (the union of closed surfaces is closed, anything with an open sheet is not).
 struct TetBlockSpec {
   std::array<int, 3> cells{8, 2, 2};
   Vec3 size = Vec3(1.0, 0.25, 0.25);  // m

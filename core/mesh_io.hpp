@@ -49,7 +49,10 @@ TetMesh read_tet_mesh(const std::string& path);
 // Adds a surface mesh as a cloth-like body: particles (mass spread evenly, total `mass`), the
 // triangles, "stretch" distance constraints on unique edges, and dihedral "bending" constraints
 // on interior edges when bending. surface_closed is set when every edge has two triangles and the
-// winding is consistent. Throws MeshError (line 0) on a degenerate triangle or duplicate vertex.
+// winding is consistent (and the model's earlier surfaces, if any, were closed); a closed surface
+// wound inward (negative enclosed volume) is turned outward. Throws MeshError (line 0) on a
+// degenerate triangle (area <= 1e-12 diag^2, diag the bounding-box diagonal), an index out of
+// range or duplicate vertices (identical coordinates).
 struct SurfaceBodySpec {
   double mass = 1.0;    // kg, total
   double radius = 0.01; // m
@@ -59,11 +62,13 @@ struct SurfaceBodySpec {
 ParticleRange add_surface_mesh(Model& model, const SurfaceMesh& mesh, const SurfaceBodySpec& spec,
                                const std::string& file);
 
-// Adds a tet mesh as a soft body: particles (mass from density, lumped), the tets (reoriented to
-// be positive when reorient, else kept and a negative tet is an error), "edge" and "volume"
-// constraints, and the boundary surface (outward). Throws MeshError (line 0) naming the element
-// when a tet is degenerate (|volume| below 1e-12 times the cube of the mesh's bounding-box
-// diagonal).
+// Adds a tet mesh as a soft body: particles (mass from density * |volume| / 4 per tet vertex),
+// the tets (a negative one has two vertices swapped when reorient; else it is kept as given and
+// its volume constraint gets the negative rest volume: a study of inconsistent orientation needs
+// that), "edge" and "volume" constraints, and the boundary surface (outward, for either sign).
+// Throws MeshError (line 0) naming the element when a tet is degenerate (|volume| below 1e-12
+// times the cube of the mesh's bounding-box diagonal), an index is out of range, two vertices
+// have identical coordinates, or a vertex belongs to no tet (it would have no mass).
 struct TetBodySpec {
   double density = 1000.0;  // kg/m^3
   double radius = 0.01;     // m

@@ -132,7 +132,8 @@ struct Model {
   // Topology (for output, plotting and volume metrics; constraints carry their own indices).
   std::vector<std::array<int, 2>> edges;      // (E x 2)
   std::vector<std::array<int, 3>> triangles;  // (T x 3) surface triangles, outward-facing when closed
-  std::vector<std::array<int, 4>> tets;       // (K x 4) positively oriented: det[x1-x0,x2-x0,x3-x0] > 0
+  std::vector<std::array<int, 4>> tets;       // (K x 4) positively oriented (det[x1-x0,x2-x0,x3-x0] > 0)
+                                              // unless a mesh was imported with reorient = false
   bool surface_closed = false;                // triangles form a closed, consistently oriented surface
 
   // Constraints (m of them), and the names of the groups they belong to.

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // Vec3::cross is defined here, not in Eigen/Core
 
 namespace pbdbench {
 
