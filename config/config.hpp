@@ -8,6 +8,7 @@
 //   --set solver.iteratons=3: unknown key 'solver.iteratons' (did you mean 'solver.iterations'?)
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -60,6 +61,7 @@ struct KeySpec {
   bool max_exclusive = false;
   std::vector<std::string> choices;  // allowed values of a String / StringList, when not empty
   std::string doc;                   // one line
+  std::size_t length = 0;            // required element count of a FloatList / IntList, 0 = any
 };
 
 // A kind of scene: the keys under [scene] that it accepts and how to build it.
@@ -164,5 +166,9 @@ struct ScenarioInfo {
   std::filesystem::path file;
 };
 std::vector<ScenarioInfo> list_scenarios();
+
+// Every table of the schema (common keys, collider keys, each scene kind) as Markdown: the
+// generated part of docs/scenarios.md.
+std::string schema_markdown();
 
 }  // namespace pbdbench::config

@@ -1,0 +1,184 @@
+// Documentation read from the schema: describe_keys / describe_config (plain text for the
+// terminal), list_scenarios, and schema_markdown (the generated part of docs/scenarios.md).
+#include <algorithm>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include "config/config.hpp"
+#include "config/internal.hpp"
+
+namespace pbdbench::config {
+
+namespace {
+
+using detail::format_bounds;
+using detail::format_value;
+using detail::type_label;
+
+// The allowed values of a key, in words: its bounds or its choices.
+std::string allowed(const KeySpec& k) {
+  if (!k.choices.empty()) return "one of: " + fmt::format("{}", fmt::join(k.choices, ", "));
+  return format_bounds(k);
+}
+
+const SceneKindInfo& kind_or_throw(const std::string& name) {
+  if (const SceneKindInfo* info = detail::find_kind(name)) return *info;
+  std::vector<std::string> names;
+  for (const SceneKindInfo& k : scene_kinds()) names.push_back(k.name);
+  std::string message = "'" + name + "' is not a scene kind";
+  const std::string close = detail::suggest(name, names);
+  if (!close.empty()) message += " (did you mean '" + close + "'?)";
+  message += fmt::format("; the kinds are {}", fmt::join(names, ", "));
+  throw ConfigError(Source{}, "scene.kind", message);
+}
+
+// A plain-text table: columns padded to their widest cell, the last column left ragged.
+std::string text_table(const std::vector<std::vector<std::string>>& rows) {
+  if (rows.empty()) return "";
+  std::vector<std::size_t> width(rows[0].size(), 0);
+  for (const auto& r : rows)
+    for (std::size_t i = 0; i + 1 < r.size(); ++i) width[i] = std::max(width[i], r[i].size());
+  std::string out;
+  for (const auto& r : rows) {
+    std::string line = " ";
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      line += " " + r[i];
+      if (i + 1 < r.size()) line += std::string(width[i] - r[i].size() + 1, ' ');
+    }
+    while (!line.empty() && line.back() == ' ') line.pop_back();
+    out += line + "\n";
+  }
+  return out;
+}
+
+std::vector<std::string> key_row(const KeySpec& k, const std::string& shown_path) {
+  return {shown_path, type_label(k), format_value(k.default_value), k.units, allowed(k), k.doc};
+}
+
+const std::vector<std::string> kHeader = {"KEY", "TYPE", "DEFAULT", "UNITS", "ALLOWED", "DOC"};
+
+std::string source_text(const Source& s) {
+  if (s.file.empty()) return "default";
+  if (s.line > 0) return s.file + ":" + std::to_string(s.line);
+  return s.file;
+}
+
+std::string markdown_cell(std::string s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '|') out += "\\|";
+    else out += c;
+  }
+  return out;
+}
+
+std::string code(const std::string& s) { return s.empty() ? "" : "`" + s + "`"; }
+
+std::string markdown_allowed(const KeySpec& k) {
+  if (!k.choices.empty()) {
+    std::vector<std::string> quoted;
+    for (const std::string& c : k.choices) quoted.push_back(code(c));
+    return "one of " + fmt::format("{}", fmt::join(quoted, ", "));
+  }
+  return markdown_cell(format_bounds(k));
+}
+
+std::string markdown_table(const std::vector<KeySpec>& keys, bool with_types) {
+  std::string out = with_types ? "| Key | Applies to | Type | Default | Units | Allowed | Description |\n"
+                                 "|---|---|---|---|---|---|---|\n"
+                               : "| Key | Type | Default | Units | Allowed | Description |\n"
+                                 "|---|---|---|---|---|---|\n";
+  for (const KeySpec& k : keys) {
+    out += "| " + code(k.path) + " | ";
+    if (with_types) out += fmt::format("{}", fmt::join(detail::collider_key_types(k.path), ", ")) + " | ";
+    out += type_label(k) + " | " + markdown_cell(code(format_value(k.default_value))) + " | " +
+           markdown_cell(k.units) + " | " + markdown_allowed(k) + " | " + markdown_cell(k.doc) + " |\n";
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string describe_keys(const std::string& scene_kind) {
+  const SceneKindInfo& info = kind_or_throw(scene_kind);
+  std::string out = fmt::format("Scene kind '{}': {}\n", info.name, info.doc);
+  std::vector<std::vector<std::string>> rows = {kHeader};
+  for (const KeySpec& k : common_keys()) rows.push_back(key_row(k, k.path));
+  out += "\nCommon keys:\n" + text_table(rows);
+  rows = {kHeader};
+  for (const KeySpec& k : info.keys) rows.push_back(key_row(k, k.path));
+  out += fmt::format("\nKeys of scene kind '{}':\n", info.name) + text_table(rows);
+  rows = {{"KEY", "APPLIES TO", "TYPE", "DEFAULT", "UNITS", "ALLOWED", "DOC"}};
+  for (const KeySpec& k : collider_keys()) {
+    std::vector<std::string> r = key_row(k, k.path);
+    r.insert(r.begin() + 1, fmt::format("{}", fmt::join(detail::collider_key_types(k.path), ", ")));
+    rows.push_back(std::move(r));
+  }
+  out += "\nKeys of each [[collider]] entry:\n" + text_table(rows);
+  return out;
+}
+
+std::string describe_config(const Config& config) {
+  std::string out = fmt::format("Scenario '{}' ({})\n", config.scenario_name, config.file.string());
+  const std::vector<std::string> header = {"KEY", "VALUE", "UNITS", "FROM", "DOC"};
+  std::vector<std::vector<std::string>> rows = {header};
+  auto add = [&rows](const KeySpec& k, const std::string& shown, const Entry& e) {
+    rows.push_back({shown, format_value(e.value), k.units, source_text(e.source), k.doc});
+  };
+  for (const KeySpec& k : common_keys())
+    if (config.has(k.path)) add(k, k.path, config.at(k.path));
+  if (config.has("scene.kind"))
+    if (const SceneKindInfo* info = detail::find_kind(config.get_string("scene.kind")))
+      for (const KeySpec& k : info->keys)
+        if (config.has(k.path)) add(k, k.path, config.at(k.path));
+  for (std::size_t i = 0; i < config.colliders.size(); ++i)
+    for (const KeySpec& k : collider_keys())
+      if (auto it = config.colliders[i].find(k.path); it != config.colliders[i].end())
+        add(k, "collider." + std::to_string(i) + k.path.substr(8), it->second);
+  return out + text_table(rows);
+}
+
+std::vector<ScenarioInfo> list_scenarios() {
+  std::vector<ScenarioInfo> out;
+  const std::filesystem::path dir = scenarios_dir();
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) return out;
+  for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
+    if (!f.is_regular_file() || f.path().extension() != ".toml") continue;
+    ScenarioInfo info;
+    info.name = f.path().stem().string();
+    info.file = f.path();
+    info.kind = "particle";
+    try {
+      const toml::table t = toml::parse_file(f.path().string());
+      info.kind = t["scene"]["kind"].value_or(std::string("particle"));
+      info.description = t["description"].value_or(std::string());
+    } catch (const toml::parse_error& e) {
+      info.description = fmt::format("(cannot be read: line {}: {})", e.source().begin.line, e.description());
+    }
+    out.push_back(std::move(info));
+  }
+  std::sort(out.begin(), out.end(), [](const ScenarioInfo& a, const ScenarioInfo& b) { return a.name < b.name; });
+  return out;
+}
+
+std::string schema_markdown() {
+  std::string out;
+  out += "## Common keys\n\nEvery scenario has these keys, whatever its scene kind.\n\n";
+  out += markdown_table(common_keys(), false);
+  out += "\n## Collider keys\n\nEach `[[collider]]` entry takes these keys (written without the "
+         "`collider.` prefix); a key that does not apply to the entry's type is an error. On the "
+         "command line a collider key is addressed by index: `--set collider.0.friction=0.5`.\n\n";
+  out += markdown_table(collider_keys(), true);
+  out += "\n## Scene kinds\n\n`scene.kind` selects one of these; the other `scene.*` keys are "
+         "those of the kind.\n";
+  for (const SceneKindInfo& k : scene_kinds()) {
+    out += fmt::format("\n### `{}`\n\n{}.\n\n", k.name, markdown_cell(k.doc));
+    out += markdown_table(k.keys, false);
+  }
+  return out;
+}
+
+}  // namespace pbdbench::config

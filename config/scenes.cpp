@@ -1,0 +1,451 @@
+// build_scene: the Model and initial State of each scene kind, from a validated Config, through
+// the generators of core/generators.hpp and the mesh readers of core/mesh_io.hpp. Whatever they or
+// the model checks refuse becomes a ConfigError naming the responsible key.
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <set>
+#include <stdexcept>
+
+#include <fmt/format.h>
+
+#include "config/config.hpp"
+#include "config/internal.hpp"
+#include "core/generators.hpp"
+#include "core/mesh_io.hpp"
+#include "core/model_checks.hpp"
+
+namespace pbdbench::config {
+
+namespace {
+
+using EntryMap = std::map<std::string, Entry>;
+
+// ---------------------------------------------------------------------------------------------
+// Reading entries (of the Config or of one collider).
+const Entry& entry(const EntryMap& m, const std::string& path) {
+  auto it = m.find(path);
+  if (it == m.end()) throw ConfigError(Source{}, path, "internal: no key '" + path + "' resolved");
+  return it->second;
+}
+double real(const EntryMap& m, const std::string& path) {
+  const Value& v = entry(m, path).value;
+  if (const auto* i = std::get_if<std::int64_t>(&v)) return static_cast<double>(*i);
+  return std::get<double>(v);
+}
+std::int64_t whole(const EntryMap& m, const std::string& path) {
+  return std::get<std::int64_t>(entry(m, path).value);
+}
+bool flag(const EntryMap& m, const std::string& path) { return std::get<bool>(entry(m, path).value); }
+const std::string& word(const EntryMap& m, const std::string& path) {
+  return std::get<std::string>(entry(m, path).value);
+}
+Vec3 vec(const EntryMap& m, const std::string& path) {
+  const auto& v = std::get<std::vector<double>>(entry(m, path).value);
+  return Vec3(v[0], v[1], v[2]);
+}
+
+std::string join(const std::string& prefix, const std::string& suffix) {
+  if (!prefix.empty() && prefix.back() == '.') return prefix + suffix;
+  return prefix + "_" + suffix;
+}
+
+ConstraintParams params(const EntryMap& m, const std::string& prefix) {
+  ConstraintParams p;
+  p.compliance = real(m, join(prefix, "compliance"));
+  p.stiffness = real(m, join(prefix, "stiffness"));
+  p.damping = real(m, join(prefix, "damping"));
+  return p;
+}
+
+Motion read_motion(const EntryMap& m, const std::string& prefix) {
+  const std::vector<std::string> p = detail::motion_key_paths(prefix);
+  Motion motion;
+  const std::string& kind = word(m, p[0]);
+  motion.kind = kind == "linear"      ? MotionKind::Linear
+                : kind == "oscillate" ? MotionKind::Oscillate
+                : kind == "circle"    ? MotionKind::Circle
+                                      : MotionKind::Static;
+  motion.velocity = vec(m, p[1]);
+  motion.amplitude = vec(m, p[2]);
+  const Vec3 axis = vec(m, p[3]);
+  motion.axis = axis.norm() > 0.0 ? Vec3(axis.normalized()) : Vec3::UnitY();
+  motion.radius = real(m, p[4]);
+  motion.frequency = real(m, p[5]);
+  motion.start = real(m, p[6]);
+  motion.stop = real(m, p[7]);
+  return motion;
+}
+
+// The unit direction at angle_deg from the direction of gravity, turning towards +x (in the plane
+// of gravity and +x). Without gravity "down" is -y.
+Vec3 direction_from_angle(const Model& model, double angle_deg) {
+  const Vec3 down = -up_direction(model);
+  Vec3 side = Vec3::UnitX() - Vec3::UnitX().dot(down) * down;
+  if (side.norm() < 1e-9) side = Vec3::UnitZ() - Vec3::UnitZ().dot(down) * down;  // gravity along x
+  side.normalize();
+  const double a = angle_deg * std::numbers::pi / 180.0;
+  return (std::cos(a) * down + std::sin(a) * side).normalized();
+}
+
+// ---------------------------------------------------------------------------------------------
+class SceneBuilder {
+ public:
+  explicit SceneBuilder(const Config& config) : c_(config), m_(config.entries) {
+    kind_ = config.get_string("scene.kind");
+    model_.name = config.scenario_name;
+    model_.gravity = config.get_vec3("gravity");
+    if (kind_ == "mesh") {
+      responsible_key_ = "scene.file";
+      responsible_ = source_or_file(config.at("scene.file").source);
+    } else {
+      responsible_key_ = "scene";
+      responsible_ = source_or_file(config.at("scene.kind").source);
+    }
+  }
+
+  Scene build() {
+    try {
+      if (kind_ == "particle") particle();
+      else if (kind_ == "spring") spring();
+      else if (kind_ == "pendulum") pendulum();
+      else if (kind_ == "chain") chain();
+      else if (kind_ == "cloth") cloth();
+      else if (kind_ == "tet_block") tet_block();
+      else if (kind_ == "spheres") spheres();
+      else if (kind_ == "mesh") mesh();
+      else throw ConfigError(responsible_, "scene.kind", "scene.kind = '" + kind_ + "' is not a scene kind");
+    } catch (const MeshError& e) {
+      throw ConfigError(responsible_, responsible_key_,
+                        fmt::format("scene.file = '{}': {}", c_.get_string("scene.file"), e.what()));
+    } catch (const std::invalid_argument& e) {
+      throw ConfigError(responsible_, responsible_key_,
+                        fmt::format("the {} scene cannot be built: {}", kind_, e.what()));
+    }
+    colliders();
+
+    Scene scene;
+    scene.initial = rest_state(model_);
+    // Initial velocities: the scene's for free particles, the motion's for driven ones.
+    if (velocity_) {
+      for (int i = 0; i < model_.particle_count(); ++i)
+        if (model_.inv_mass[static_cast<std::size_t>(i)] > 0.0) scene.initial.v.row(i) = velocity_->transpose();
+    }
+    for (const Attachment& a : model_.attachments)
+      if (a.motion >= 0)
+        scene.initial.v.row(a.particle) =
+            motion_velocity(model_.motions[static_cast<std::size_t>(a.motion)], 0.0).transpose();
+    for (const auto& [particle, x] : initial_positions_) scene.initial.x.row(particle) = x.transpose();
+
+    check(check_model(model_), "model");
+    check(check_state(model_, scene.initial), "initial state");
+    scene.model = std::move(model_);
+    return scene;
+  }
+
+ private:
+  Source source_or_file(const Source& s) const {
+    return s.file.empty() ? Source{c_.file.string(), 0} : s;
+  }
+
+  [[noreturn]] void refuse(const std::string& key, const std::string& message) const {
+    throw ConfigError(source_or_file(c_.at(key).source), key, message);
+  }
+
+  void check(const std::vector<ModelProblem>& problems, const char* what) const {
+    if (problems.empty()) return;
+    std::string list;
+    const std::size_t shown = std::min<std::size_t>(problems.size(), 5);
+    for (std::size_t i = 0; i < shown; ++i) list += (i ? "; " : "") + problems[i].what;
+    if (problems.size() > shown) list += fmt::format("; and {} more", problems.size() - shown);
+    std::string subject = kind_ == "mesh"
+                              ? fmt::format("scene.file = '{}'", c_.get_string("scene.file"))
+                              : fmt::format("the {} scene", kind_);
+    throw ConfigError(responsible_, responsible_key_,
+                      fmt::format("{}: the {} is unsound: {}", subject, what, list));
+  }
+
+  // Pins `particles` (model indices) and drives them with the scene's pin motion, if any.
+  void pin(const std::vector<int>& particles) {
+    const int motion = pin_motion(!particles.empty());
+    std::set<int> attached;
+    for (Attachment& a : model_.attachments) {
+      attached.insert(a.particle);
+      if (std::find(particles.begin(), particles.end(), a.particle) != particles.end()) a.motion = motion;
+    }
+    for (int p : particles) {
+      if (attached.count(p)) continue;
+      attached.insert(p);
+      model_.inv_mass[static_cast<std::size_t>(p)] = 0.0;
+      Attachment a;
+      a.particle = p;
+      a.anchor = model_.rest_positions.row(p).transpose();
+      a.motion = motion;
+      model_.attachments.push_back(a);
+    }
+  }
+
+  // The index of the pin motion in model.motions, or -1 when static.
+  int pin_motion(bool have_pins) {
+    if (!m_.count("scene.pin_motion") || word(m_, "scene.pin_motion") == "static") return -1;
+    if (!have_pins)
+      refuse("scene.pin_motion", fmt::format("scene.pin_motion = '{}' drives the pinned particles, "
+                                             "but this scene pins none",
+                                             word(m_, "scene.pin_motion")));
+    model_.motions.push_back(read_motion(m_, "scene.pin_motion"));
+    return static_cast<int>(model_.motions.size()) - 1;
+  }
+
+  // Indices of scene.pin_indices, each checked against the particle count.
+  std::vector<int> pin_indices(int count) const {
+    std::vector<int> out;
+    const auto& list = std::get<std::vector<std::int64_t>>(c_.at("scene.pin_indices").value);
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      if (list[i] >= count)
+        refuse("scene.pin_indices",
+               fmt::format("scene.pin_indices[{}] = {} is out of range: the scene has {} particles "
+                           "(indices 0 to {})",
+                           i, list[i], count, count - 1));
+      out.push_back(static_cast<int>(list[i]));
+    }
+    return out;
+  }
+
+  void particle() {
+    add_particle(model_, vec(m_, "scene.position"), real(m_, "scene.mass"), real(m_, "scene.radius"));
+    velocity_ = vec(m_, "scene.velocity");
+  }
+
+  void spring() {
+    const Vec3 direction = vec(m_, "scene.direction").normalized();
+    ChainSpec s;
+    s.links = 1;
+    s.link_length = real(m_, "scene.rest_length");
+    s.top = vec(m_, "scene.anchor");
+    s.direction = direction;
+    s.mass = real(m_, "scene.mass");
+    s.end_mass = 0.0;
+    s.radius = real(m_, "scene.radius");
+    s.pin_top = true;
+    s.link = params(m_, "scene.");
+    const ParticleRange r = add_chain(model_, s);
+    initial_positions_.emplace_back(r.begin + 1, s.top + real(m_, "scene.initial_length") * direction);
+  }
+
+  void pendulum() {
+    ChainSpec s;
+    s.links = 1;
+    s.link_length = real(m_, "scene.length");
+    s.top = vec(m_, "scene.pivot");
+    s.direction = direction_from_angle(model_, real(m_, "scene.angle_deg"));
+    s.mass = real(m_, "scene.mass");
+    s.end_mass = 0.0;
+    s.radius = real(m_, "scene.radius");
+    s.pin_top = true;
+    s.link = params(m_, "scene.");
+    add_chain(model_, s);
+  }
+
+  void chain() {
+    ChainSpec s;
+    s.links = static_cast<int>(whole(m_, "scene.links"));
+    s.link_length = real(m_, "scene.link_length");
+    s.top = vec(m_, "scene.top");
+    s.direction = direction_from_angle(model_, real(m_, "scene.angle_deg"));
+    s.mass = real(m_, "scene.mass");
+    s.end_mass = real(m_, "scene.end_mass");
+    s.radius = real(m_, "scene.radius");
+    s.pin_top = flag(m_, "scene.pin_top");
+    s.link = params(m_, "scene.");
+    const ParticleRange r = add_chain(model_, s);
+    pin(s.pin_top ? std::vector<int>{r.begin} : std::vector<int>{});
+  }
+
+  void cloth() {
+    const auto& res = std::get<std::vector<std::int64_t>>(c_.at("scene.resolution").value);
+    const auto& size = c_.get_floats("scene.size");
+    ClothSpec s;
+    s.nx = static_cast<int>(res[0]);
+    s.ny = static_cast<int>(res[1]);
+    if (res[0] * res[1] > 10'000'000)
+      refuse("scene.resolution", fmt::format("scene.resolution = [{}, {}] makes {} particles; at most "
+                                             "10000000 are allowed",
+                                             res[0], res[1], res[0] * res[1]));
+    s.width = size[0];
+    s.height = size[1];
+    s.origin = vec(m_, "scene.origin");
+    s.plane = word(m_, "scene.plane");
+    s.mass = real(m_, "scene.mass");
+    s.radius = real(m_, "scene.radius");
+    s.shear = flag(m_, "scene.shear");
+    s.bending = flag(m_, "scene.bending");
+    s.bending_model = word(m_, "scene.bending_model") == "distance" ? BendingModel::Distance
+                                                                     : BendingModel::Dihedral;
+    s.stretch = params(m_, "scene.stretch");
+    s.shear_params = params(m_, "scene.shear");
+    s.bending_params = params(m_, "scene.bending");
+    const ParticleRange r = add_cloth(model_, s);
+    const int nx = s.nx, ny = s.ny;
+    auto id = [&](int i, int j) { return r.begin + j * nx + i; };
+    std::vector<int> pins;
+    const std::string& which = word(m_, "scene.pins");
+    if (which == "top_corners") pins = {id(0, 0), id(nx - 1, 0)};
+    else if (which == "top_edge")
+      for (int i = 0; i < nx; ++i) pins.push_back(id(i, 0));
+    else if (which == "corners")
+      pins = {id(0, 0), id(nx - 1, 0), id(0, ny - 1), id(nx - 1, ny - 1)};
+    for (int p : pin_indices(r.size())) pins.push_back(r.begin + p);
+    pin(pins);
+    velocity_ = vec(m_, "scene.velocity");
+  }
+
+  void tet_block() {
+    const auto& cells = c_.get_ints("scene.cells");
+    TetBlockSpec s;
+    if (cells[0] * cells[1] * cells[2] > 2'000'000)
+      refuse("scene.cells", fmt::format("scene.cells = [{}, {}, {}] makes {} cells; at most 2000000 "
+                                        "are allowed",
+                                        cells[0], cells[1], cells[2], cells[0] * cells[1] * cells[2]));
+    s.cells = {static_cast<int>(cells[0]), static_cast<int>(cells[1]), static_cast<int>(cells[2])};
+    s.size = vec(m_, "scene.size");
+    s.origin = vec(m_, "scene.origin");
+    s.density = real(m_, "scene.density");
+    s.radius = real(m_, "scene.radius");
+    s.tets_per_cell = static_cast<int>(whole(m_, "scene.tets_per_cell"));
+    s.edges = flag(m_, "scene.edges");
+    s.volumes = flag(m_, "scene.volumes");
+    s.edge = params(m_, "scene.edge");
+    s.volume = params(m_, "scene.volume");
+    const ParticleRange r = add_tet_block(model_, s);
+
+    std::vector<int> pins;
+    const std::string& face = word(m_, "scene.fixed");
+    if (face != "none") {
+      const int axis = face[0] - 'x';
+      const bool at_max = face.substr(2) == "max";
+      const double target = s.origin[axis] + (at_max ? s.size[axis] : 0.0);
+      const double tolerance = 1e-9 * s.size.maxCoeff();  // the generator's vertices are exact up to rounding
+      for (int p = r.begin; p < r.end; ++p)
+        if (std::abs(model_.rest_positions(p, axis) - target) <= tolerance) pins.push_back(p);
+    }
+    pin(pins);
+    velocity_ = vec(m_, "scene.velocity");
+  }
+
+  void spheres() {
+    const auto& count = c_.get_ints("scene.count");
+    PackedSpheresSpec s;
+    if (count[0] * count[1] * count[2] > 10'000'000)
+      refuse("scene.count", fmt::format("scene.count = [{}, {}, {}] makes {} spheres; at most 10000000 "
+                                        "are allowed",
+                                        count[0], count[1], count[2], count[0] * count[1] * count[2]));
+    s.count = {static_cast<int>(count[0]), static_cast<int>(count[1]), static_cast<int>(count[2])};
+    s.radius = real(m_, "scene.radius");
+    s.gap = real(m_, "scene.gap");
+    s.origin = vec(m_, "scene.origin");
+    s.mass = real(m_, "scene.mass");
+    s.jitter = real(m_, "scene.jitter");
+    s.seed = static_cast<std::uint64_t>(whole(m_, "scene.seed"));
+    if (!(s.jitter < s.radius * s.gap))
+      refuse("scene.jitter",
+             fmt::format("scene.jitter = {} m must be below radius * gap = {} m, so that neighbouring "
+                         "spheres cannot start overlapping",
+                         s.jitter, s.radius * s.gap));
+    add_packed_spheres(model_, s);
+    model_.particle_contact = flag(m_, "scene.particle_contact");
+    model_.particle_restitution = real(m_, "scene.restitution");
+    model_.particle_friction = real(m_, "scene.friction");
+    velocity_ = vec(m_, "scene.velocity");
+  }
+
+  void mesh() {
+    const std::string& name = word(m_, "scene.file");
+    const std::filesystem::path path = c_.file.parent_path() / name;
+    std::string format = word(m_, "scene.format");
+    if (format == "auto") {
+      const std::string ext = path.extension().string();
+      if (ext == ".obj") format = "obj";
+      else if (ext == ".node" || ext == ".ele") format = "tetgen";
+      else if (ext == ".msh") format = "gmsh";
+      else
+        refuse("scene.file", fmt::format("scene.file = '{}': cannot tell the format from the "
+                                         "extension '{}' (.obj, .node, .ele or .msh); set scene.format",
+                                         name, ext));
+    }
+    const double scale = real(m_, "scene.scale");
+    const Vec3 translate = vec(m_, "scene.translate");
+    auto place = [&](Points& v) {
+      for (Eigen::Index i = 0; i < v.rows(); ++i) v.row(i) = (scale * v.row(i).transpose() + translate).transpose();
+    };
+    ParticleRange r;
+    if (format == "obj") {
+      SurfaceMesh mesh = read_obj(path.string());
+      place(mesh.vertices);
+      SurfaceBodySpec s;
+      s.mass = real(m_, "scene.mass");
+      s.radius = real(m_, "scene.radius");
+      s.bending = flag(m_, "scene.bending");
+      s.stretch = params(m_, "scene.stretch");
+      s.bending_params = params(m_, "scene.bending");
+      r = add_surface_mesh(model_, mesh, s, path.string());
+    } else {
+      TetMesh mesh = format == "tetgen" ? read_tetgen(path.string()) : read_gmsh(path.string());
+      place(mesh.vertices);
+      TetBodySpec s;
+      s.density = real(m_, "scene.density");
+      s.radius = real(m_, "scene.radius");
+      s.reorient = flag(m_, "scene.reorient");
+      s.edges = flag(m_, "scene.edges");
+      s.volumes = flag(m_, "scene.volumes");
+      s.edge = params(m_, "scene.edge");
+      s.volume = params(m_, "scene.volume");
+      r = add_tet_mesh(model_, mesh, s, path.string());
+    }
+    std::vector<int> pins;
+    for (int p : pin_indices(r.size())) pins.push_back(r.begin + p);
+    pin(pins);
+    velocity_ = vec(m_, "scene.velocity");
+  }
+
+  void colliders() {
+    for (const EntryMap& c : c_.colliders) {
+      if (word(c, "collider.type") == "plane") {
+        PlaneCollider p;
+        p.normal = vec(c, "collider.normal");
+        p.offset = real(c, "collider.offset");
+        p.restitution = real(c, "collider.restitution");
+        p.friction = real(c, "collider.friction");
+        model_.planes.push_back(p);
+      } else {
+        SphereCollider s;
+        s.center = vec(c, "collider.center");
+        s.radius = real(c, "collider.radius");
+        const std::string& side = word(c, "collider.side");
+        s.side = side == "inside" ? SphereSide::Inside : side == "bowl" ? SphereSide::Bowl : SphereSide::Outside;
+        s.restitution = real(c, "collider.restitution");
+        s.friction = real(c, "collider.friction");
+        if (word(c, "collider.motion") != "static") {
+          model_.motions.push_back(read_motion(c, "collider.motion"));
+          s.motion = static_cast<int>(model_.motions.size()) - 1;
+        }
+        model_.spheres.push_back(s);
+      }
+    }
+  }
+
+  const Config& c_;
+  const EntryMap& m_;
+  std::string kind_;
+  std::string responsible_key_;
+  Source responsible_;
+  Model model_;
+  std::optional<Vec3> velocity_;
+  std::vector<std::pair<int, Vec3>> initial_positions_;
+};
+
+}  // namespace
+
+Scene build_scene(const Config& config) { return SceneBuilder(config).build(); }
+
+}  // namespace pbdbench::config

@@ -1,0 +1,169 @@
+// describe_keys, describe_config, list_scenarios, resolve_scenario, and docs/scenarios.md.
+//
+// docs/scenarios.md is a hand-written introduction, a marker line, and schema_markdown(). After a
+// schema change, regenerate it with
+//   PBDBENCH_UPDATE_DOCS=1 test_config --gtest_filter=Describe.DocsContainTheSchema
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "config/config.hpp"
+#include "config/internal.hpp"
+#include "tests/config/helpers.hpp"
+
+namespace pbdbench::config {
+namespace {
+
+using testing::sets;
+
+const char* kMarker = "<!-- Everything below this line is generated from the schema (config/schema.cpp). -->";
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// The line of `text` that starts with `start` (after the indent), or "".
+std::string line_of(const std::string& text, const std::string& start) {
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line))
+    if (line.find_first_not_of(' ') != std::string::npos &&
+        line.compare(line.find_first_not_of(' '), start.size(), start) == 0)
+      return line;
+  return "";
+}
+
+TEST(Describe, KeysOfAKindWithTypeDefaultAndUnits) {
+  for (const SceneKindInfo& kind : scene_kinds()) {
+    SCOPED_TRACE(kind.name);
+    const std::string text = describe_keys(kind.name);
+    EXPECT_TRUE(contains(text, kind.doc));
+    std::vector<const KeySpec*> all;
+    for (const KeySpec& k : common_keys()) all.push_back(&k);
+    for (const KeySpec& k : kind.keys) all.push_back(&k);
+    for (const KeySpec& k : collider_keys()) all.push_back(&k);
+    for (const KeySpec* k : all) {
+      const std::string line = line_of(text, k->path + " ");
+      ASSERT_FALSE(line.empty()) << k->path << " is missing";
+      EXPECT_TRUE(contains(line, detail::type_label(*k))) << line;
+      EXPECT_TRUE(contains(line, detail::format_value(k->default_value))) << line;
+      EXPECT_TRUE(contains(line, k->units)) << line;
+      EXPECT_TRUE(contains(line, k->doc)) << line;
+      EXPECT_TRUE(contains(line, detail::format_bounds(*k))) << line;
+    }
+    // No key of another kind.
+    for (const SceneKindInfo& other : scene_kinds())
+      for (const KeySpec& k : other.keys)
+        if (!detail::find_key(kind.keys, k.path)) {
+          EXPECT_EQ(line_of(text, k.path + " "), "") << k.path;
+        }
+  }
+  const std::string cloth = describe_keys("cloth");
+  EXPECT_TRUE(contains(line_of(cloth, "scene.stretch_compliance "), "m/N"));
+  EXPECT_TRUE(contains(line_of(cloth, "scene.resolution "), "[64, 64]"));
+  EXPECT_TRUE(contains(line_of(cloth, "scene.pins "), "one of: top_corners, top_edge, corners, none"));
+}
+
+TEST(Describe, UnknownKind) {
+  try {
+    (void)describe_keys("clth");
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "'clth' is not a scene kind (did you mean 'cloth'?); the kinds are particle, spring, "
+              "pendulum, chain, cloth, tet_block, spheres, mesh");
+  }
+}
+
+TEST(Describe, ConfigShowsValuesAndSources) {
+  const Config c = load_text("[scene]\nkind = \"chain\"\nlinks = 4\n[[collider]]\ntype = \"plane\"\n",
+                             "d.toml", sets({"solver.iterations=3"}));
+  const std::string text = describe_config(c);
+  EXPECT_TRUE(contains(line_of(text, "scene.links "), "d.toml:3"));
+  EXPECT_TRUE(contains(line_of(text, "scene.links "), " 4 "));
+  EXPECT_TRUE(contains(line_of(text, "solver.iterations "), "--set solver.iterations=3"));
+  EXPECT_TRUE(contains(line_of(text, "solver.substeps "), "default"));
+  EXPECT_TRUE(contains(line_of(text, "collider.0.type "), "d.toml:5"));
+  EXPECT_TRUE(contains(line_of(text, "collider.0.normal "), "default"));
+  EXPECT_EQ(line_of(text, "scene.resolution "), "");
+  for (const auto& [path, entry] : c.entries) EXPECT_NE(line_of(text, path + " "), "") << path;
+}
+
+TEST(Describe, ListScenariosFindsTheCatalog) {
+  const auto list = list_scenarios();
+  std::vector<std::string> names;
+  for (const ScenarioInfo& s : list) {
+    names.push_back(s.name);
+    EXPECT_FALSE(s.description.empty()) << s.name;
+    EXPECT_TRUE(std::filesystem::exists(s.file)) << s.name;
+  }
+  EXPECT_EQ(names, testing::catalog_names());  // sorted
+  auto kind_of = [&](const std::string& name) {
+    for (const ScenarioInfo& s : list)
+      if (s.name == name) return s.kind;
+    return std::string();
+  };
+  EXPECT_EQ(kind_of("hanging_cloth"), "cloth");
+  EXPECT_EQ(kind_of("free_fall"), "particle");
+  EXPECT_EQ(kind_of("balls_in_bowl"), "spheres");
+  EXPECT_EQ(kind_of("mesh_box_tets"), "mesh");
+}
+
+TEST(Describe, ResolveScenario) {
+  const std::filesystem::path dir = testing::catalog_dir();
+  EXPECT_EQ(resolve_scenario("pendulum"), dir / "pendulum.toml");
+  EXPECT_EQ(resolve_scenario("pendulum.toml"), dir / "pendulum.toml");
+  const std::string path = (dir / "spring.toml").string();
+  EXPECT_EQ(resolve_scenario(path), std::filesystem::path(path));
+  EXPECT_EQ(load(path).scenario_name, "spring");
+  EXPECT_EQ(load("spring").scenario_name, "spring");
+}
+
+TEST(Describe, UnknownScenarioListsTheCatalog) {
+  try {
+    (void)resolve_scenario("hanging_clot");
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_TRUE(contains(what, "no scenario 'hanging_clot'")) << what;
+    EXPECT_TRUE(contains(what, "(did you mean 'hanging_cloth'?)")) << what;
+    for (const std::string& name : testing::catalog_names()) EXPECT_TRUE(contains(what, name)) << name;
+  }
+}
+
+TEST(Describe, MarkdownHasEveryTableAndKey) {
+  const std::string md = schema_markdown();
+  for (const KeySpec& k : common_keys()) EXPECT_TRUE(contains(md, "| `" + k.path + "` |")) << k.path;
+  for (const KeySpec& k : collider_keys()) EXPECT_TRUE(contains(md, "| `" + k.path + "` |")) << k.path;
+  for (const SceneKindInfo& kind : scene_kinds()) {
+    EXPECT_TRUE(contains(md, "### `" + kind.name + "`")) << kind.name;
+    for (const KeySpec& k : kind.keys) EXPECT_TRUE(contains(md, "| `" + k.path + "` |")) << k.path;
+  }
+  EXPECT_TRUE(contains(md, "| `time.dt` | float | `0.016666666666666666` | s | (0, 1] |"));
+}
+
+TEST(Describe, DocsContainTheSchema) {
+  const std::filesystem::path path = std::filesystem::path(PBDBENCH_SOURCE_DIR) / "docs" / "scenarios.md";
+  std::string text;
+  {
+    std::ifstream in(path);
+    ASSERT_TRUE(in) << "cannot read " << path;
+    std::ostringstream s;
+    s << in.rdbuf();
+    text = s.str();
+  }
+  const auto marker = text.find(kMarker);
+  ASSERT_NE(marker, std::string::npos) << "no marker line in " << path;
+  const std::string generated = schema_markdown();
+  if (const char* update = std::getenv("PBDBENCH_UPDATE_DOCS"); update && std::string(update) == "1") {
+    text = text.substr(0, marker) + kMarker + "\n\n" + generated;
+    std::ofstream(path) << text;
+  }
+  EXPECT_TRUE(contains(text, generated))
+      << path << " is out of date; regenerate it with PBDBENCH_UPDATE_DOCS=1 test_config "
+      << "--gtest_filter=Describe.DocsContainTheSchema";
+}
+
+}  // namespace
+}  // namespace pbdbench::config

@@ -1,0 +1,386 @@
+// build_scene for each kind, and the catalog: every scenario loads, builds, passes the model
+// checks and survives a to_toml round trip.
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <set>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "config/config.hpp"
+#include "core/model_checks.hpp"
+#include "tests/config/helpers.hpp"
+
+namespace pbdbench::config {
+namespace {
+
+using testing::load_error;
+using testing::sets;
+
+// Positions from closed forms built of a few operations: a few ulps of the metre scale.
+constexpr double kTol = 1e-12;
+
+Scene build(const std::string& text, const std::vector<std::string>& overrides = {}) {
+  return build_scene(load_text(text, "scene.toml", sets(overrides)));
+}
+
+std::set<int> attached(const Model& m) {
+  std::set<int> out;
+  for (const Attachment& a : m.attachments) out.insert(a.particle);
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The catalog.
+
+// Particle counts of every catalog scenario; a new scenario must be added here.
+const std::map<std::string, int> kCatalogCounts = {
+    {"balls_in_bowl", 125},    // 5 x 5 x 5
+    {"cantilever_beam", 208},  // 13 x 4 x 4 vertices
+    {"free_fall", 1},
+    {"hanging_chain", 20},
+    {"hanging_cloth", 4096},
+    {"mesh_box_tets", 27},
+    {"mesh_icosphere", 42},
+    {"pendulum", 2},
+    {"soft_cube_drop", 125},  // 5 x 5 x 5 vertices
+    {"spring", 2},
+};
+
+TEST(Catalog, ListsExactlyTheKnownScenarios) {
+  std::vector<std::string> expected;
+  for (const auto& [name, count] : kCatalogCounts) expected.push_back(name);
+  EXPECT_EQ(testing::catalog_names(), expected);
+}
+
+TEST(Catalog, EveryScenarioLoadsBuildsAndPassesTheChecks) {
+  for (const std::string& name : testing::catalog_names()) {
+    SCOPED_TRACE(name);
+    Config c;
+    ASSERT_NO_THROW(c = load(name));
+    EXPECT_EQ(c.scenario_name, name);
+    EXPECT_FALSE(c.get_string("description").empty());
+    const Scene s = build_scene(c);
+    EXPECT_EQ(s.model.particle_count(), kCatalogCounts.at(name));
+    EXPECT_TRUE(check_model(s.model).empty());
+    EXPECT_TRUE(check_state(s.model, s.initial).empty());
+    EXPECT_EQ(s.model.name, name);
+    EXPECT_EQ(solver_options(c).validate(), "");
+    // Small enough to run in seconds with the defaults.
+    EXPECT_LE(run_options(c).steps(), 1000);
+  }
+}
+
+TEST(Catalog, ToTomlRoundTrip) {
+  for (const std::string& name : testing::catalog_names()) {
+    SCOPED_TRACE(name);
+    const Config a = load(name);
+    const std::string text = a.to_toml();
+    const Config b = load_text(text, a.file);  // the same file, so mesh paths resolve alike
+    ASSERT_EQ(a.entries.size(), b.entries.size());
+    for (const auto& [path, entry] : a.entries) {
+      ASSERT_TRUE(b.has(path)) << path;
+      EXPECT_EQ(entry.value, b.at(path).value) << path;
+      EXPECT_FALSE(b.at(path).source.file.empty()) << path << " was not written";
+    }
+    ASSERT_EQ(a.colliders.size(), b.colliders.size());
+    for (std::size_t i = 0; i < a.colliders.size(); ++i) {
+      ASSERT_EQ(a.colliders[i].size(), b.colliders[i].size());
+      for (const auto& [path, entry] : a.colliders[i]) {
+        ASSERT_TRUE(b.colliders[i].count(path)) << path;
+        EXPECT_EQ(entry.value, b.colliders[i].at(path).value) << path;
+      }
+    }
+    EXPECT_EQ(b.to_toml(), text);
+  }
+}
+
+TEST(Catalog, ToTomlKeepsEveryBitOfAFloat) {
+  const Config a = load_text("[time]\ndt = 0.1\nduration = 0.30000000000000004\n", "f.toml",
+                             sets({"gravity=[1e-300, -9.80665, 3.141592653589793]"}));
+  const Config b = load_text(a.to_toml(), "f.toml");
+  EXPECT_EQ(b.get_double("time.duration"), 0.30000000000000004);
+  EXPECT_EQ(b.get_vec3("gravity"), a.get_vec3("gravity"));
+}
+
+TEST(Catalog, SpecificScenarios) {
+  const Scene cloth = build_scene(load("hanging_cloth"));
+  EXPECT_EQ(attached(cloth.model), (std::set<int>{0, 63}));
+  EXPECT_EQ(run_options(load("hanging_cloth")).steps(), 120);
+  const Scene bowl = build_scene(load("balls_in_bowl"));
+  ASSERT_EQ(bowl.model.spheres.size(), 1u);
+  EXPECT_EQ(bowl.model.spheres[0].side, SphereSide::Bowl);
+  EXPECT_TRUE(bowl.model.particle_contact);
+  // Every ball starts inside the bowl's sphere (its lower half) or above its centre.
+  const SphereCollider& b = bowl.model.spheres[0];
+  for (int i = 0; i < bowl.model.particle_count(); ++i) {
+    const Vec3 x = bowl.initial.x.row(i);
+    if (x.y() < b.center.y()) {
+      EXPECT_LT((x - b.center).norm(), b.radius - 0.05) << i;
+    }
+  }
+  const Scene beam = build_scene(load("cantilever_beam"));
+  EXPECT_EQ(attached(beam.model).size(), 16u);  // the 4 x 4 vertices of the x = 0 face
+  const Scene drop = build_scene(load("soft_cube_drop"));
+  ASSERT_EQ(drop.model.planes.size(), 1u);
+  EXPECT_EQ(drop.model.planes[0].friction, 0.5);
+  EXPECT_NEAR(drop.initial.x.col(1).minCoeff(), 0.5, kTol);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The kinds.
+
+TEST(Scenes, Particle) {
+  const Scene s = build("[scene]\nkind = \"particle\"\nposition = [1, 2, 3]\nvelocity = [4, 5, 6]\nmass = 2\n");
+  ASSERT_EQ(s.model.particle_count(), 1);
+  EXPECT_EQ(Vec3(s.initial.x.row(0)), Vec3(1, 2, 3));
+  EXPECT_EQ(Vec3(s.initial.v.row(0)), Vec3(4, 5, 6));
+  EXPECT_EQ(s.model.inv_mass[0], 0.5);
+  EXPECT_EQ(s.initial.time, 0.0);
+}
+
+TEST(Scenes, SpringStartsStretchedAtRest) {
+  const Scene s = build(
+      "gravity = [0, 0, 0]\n[scene]\nkind = \"spring\"\nanchor = [1, 0, 0]\ndirection = [0, 2, 0]\n"
+      "rest_length = 1\ninitial_length = 1.5\ncompliance = 0.001\n");
+  ASSERT_EQ(s.model.particle_count(), 2);
+  EXPECT_EQ(s.model.inv_mass[0], 0.0);
+  EXPECT_EQ(s.model.inv_mass[1], 1.0);
+  EXPECT_NEAR((Vec3(s.initial.x.row(1)) - Vec3(1, 1.5, 0)).norm(), 0.0, kTol);  // direction normalised
+  EXPECT_EQ(Vec3(s.initial.v.row(1)), Vec3::Zero());
+  ASSERT_EQ(s.model.constraints.size(), 1u);
+  EXPECT_NEAR(s.model.constraints[0].rest, 1.0, kTol);
+  EXPECT_EQ(s.model.constraints[0].compliance, 0.001);
+  EXPECT_EQ(s.model.gravity, Vec3::Zero());
+}
+
+TEST(Scenes, SpringDirectionMustBeNonZero) {
+  const ConfigError e = load_error("[scene]\nkind = \"spring\"\ndirection = [0, 0, 0]\n");
+  EXPECT_EQ(e.key(), "scene.direction");
+  EXPECT_EQ(e.source().line, 3);
+  EXPECT_EQ(std::string(e.what()),
+            "bad.toml:3: scene.direction = [0.0, 0.0, 0.0] must be non-zero (it is normalised)");
+}
+
+TEST(Scenes, PendulumAngleFromGravity) {
+  const Scene flat = build("[scene]\nkind = \"pendulum\"\npivot = [0, 1, 0]\nlength = 2\nangle_deg = 90\n");
+  EXPECT_NEAR((Vec3(flat.initial.x.row(1)) - Vec3(2, 1, 0)).norm(), 0.0, kTol);
+  const Scene down = build("[scene]\nkind = \"pendulum\"\nlength = 2\nangle_deg = 0\n");
+  EXPECT_NEAR((Vec3(down.initial.x.row(1)) - Vec3(0, -2, 0)).norm(), 0.0, kTol);
+  const Scene tilted = build("[scene]\nkind = \"pendulum\"\nangle_deg = -30\n");
+  const double a = -30.0 * std::numbers::pi / 180.0;
+  EXPECT_NEAR((Vec3(tilted.initial.x.row(1)) - Vec3(std::sin(a), -std::cos(a), 0)).norm(), 0.0, kTol);
+  // "Down" follows gravity: with gravity along -z, 0 degrees hangs along -z.
+  const Scene z = build("gravity = [0, 0, -9.81]\n[scene]\nkind = \"pendulum\"\nangle_deg = 0\n");
+  EXPECT_NEAR((Vec3(z.initial.x.row(1)) - Vec3(0, 0, -1)).norm(), 0.0, kTol);
+  EXPECT_EQ(flat.model.constraints[0].compliance, 0.0);  // rigid by default
+  EXPECT_EQ(attached(flat.model), (std::set<int>{0}));
+}
+
+TEST(Scenes, ChainLayoutAndPins) {
+  const Scene s = build("[scene]\nkind = \"chain\"\nlinks = 3\nlink_length = 0.5\nangle_deg = 90\nend_mass = 4\n");
+  ASSERT_EQ(s.model.particle_count(), 4);
+  EXPECT_NEAR((Vec3(s.initial.x.row(3)) - Vec3(1.5, 0, 0)).norm(), 0.0, kTol);
+  EXPECT_EQ(s.model.inv_mass[3], 0.25);
+  EXPECT_EQ(attached(s.model), (std::set<int>{0}));
+  const Scene free = build("[scene]\nkind = \"chain\"\nlinks = 3\npin_top = false\n");
+  EXPECT_TRUE(free.model.attachments.empty());
+  EXPECT_GT(free.model.inv_mass[0], 0.0);
+}
+
+TEST(Scenes, ChainPinMotionDrivesTheTop) {
+  const Scene s = build(
+      "[scene]\nkind = \"chain\"\nlinks = 2\npin_motion = \"linear\"\npin_motion_velocity = [1, 0, 0]\n");
+  ASSERT_EQ(s.model.motions.size(), 1u);
+  EXPECT_EQ(s.model.motions[0].kind, MotionKind::Linear);
+  ASSERT_EQ(s.model.attachments.size(), 1u);
+  EXPECT_EQ(s.model.attachments[0].motion, 0);
+  EXPECT_EQ(Vec3(s.initial.v.row(0)), Vec3(1, 0, 0));  // the driven particle moves from t = 0
+  EXPECT_EQ(Vec3(s.initial.v.row(1)), Vec3::Zero());
+}
+
+TEST(Scenes, PinMotionNeedsPinnedParticles) {
+  const ConfigError e =
+      load_error("[scene]\nkind = \"chain\"\npin_top = false\npin_motion = \"oscillate\"\n");
+  EXPECT_EQ(e.key(), "scene.pin_motion");
+  EXPECT_EQ(e.source().line, 4);
+  EXPECT_EQ(std::string(e.what()),
+            "bad.toml:4: scene.pin_motion = 'oscillate' drives the pinned particles, but this scene "
+            "pins none");
+}
+
+TEST(Scenes, CircleMotionNeedsAnAxis) {
+  const ConfigError e = load_error(
+      "[scene]\nkind = \"chain\"\npin_motion = \"circle\"\npin_motion_axis = [0, 0, 0]\n");
+  EXPECT_EQ(e.key(), "scene.pin_motion_axis");
+  EXPECT_EQ(e.source().line, 4);
+}
+
+TEST(Scenes, ClothPins) {
+  const std::string base = "[scene]\nkind = \"cloth\"\nresolution = [4, 3]\n";
+  EXPECT_EQ(attached(build(base).model), (std::set<int>{0, 3}));  // top_corners by default
+  EXPECT_EQ(attached(build(base, {"scene.pins=top_edge"}).model), (std::set<int>{0, 1, 2, 3}));
+  EXPECT_EQ(attached(build(base, {"scene.pins=corners"}).model), (std::set<int>{0, 3, 8, 11}));
+  EXPECT_TRUE(build(base, {"scene.pins=none"}).model.attachments.empty());
+  const Scene extra = build(base, {"scene.pin_indices=[5, 0]", "scene.velocity=[0, 1, 0]"});
+  EXPECT_EQ(attached(extra.model), (std::set<int>{0, 3, 5}));
+  EXPECT_EQ(extra.model.attachments.size(), 3u);  // no duplicate for particle 0
+  EXPECT_EQ(Vec3(extra.initial.v.row(5)), Vec3::Zero());
+  EXPECT_EQ(Vec3(extra.initial.v.row(6)), Vec3(0, 1, 0));
+  EXPECT_EQ(extra.model.particle_count(), 12);
+  EXPECT_NEAR(1.0 / extra.model.inv_mass[6], 1.0 / 12.0, kTol);
+}
+
+TEST(Scenes, ClothOptions) {
+  const std::string base = "[scene]\nkind = \"cloth\"\nresolution = [5, 5]\n";
+  const Scene all = build(base);
+  const Scene bare = build(base, {"scene.shear=false", "scene.bending=false"});
+  EXPECT_GT(all.model.constraint_count(), bare.model.constraint_count());
+  EXPECT_EQ(bare.model.constraint_count(), 2 * 5 * 4);  // the grid edges
+  const Scene xy = build(base, {"scene.plane=xy", "scene.origin=[0, 2, 0]", "scene.size=[2, 1]"});
+  EXPECT_NEAR(xy.initial.x.col(1).maxCoeff(), 2.0, kTol);
+  EXPECT_NEAR(xy.initial.x.col(1).minCoeff(), 1.0, kTol);
+  EXPECT_NEAR(xy.initial.x.col(0).maxCoeff(), 2.0, kTol);
+  const Scene soft = build(base, {"scene.stretch_compliance=0.5"});
+  EXPECT_EQ(soft.model.constraints[0].compliance, 0.5);
+}
+
+TEST(Scenes, TetBlockFixedFace) {
+  const std::string base = "[scene]\nkind = \"tet_block\"\ncells = [3, 2, 1]\nsize = [0.3, 0.2, 0.1]\n"
+                           "origin = [1, 0, 0]\n";
+  const Scene none = build(base);
+  EXPECT_EQ(none.model.particle_count(), 4 * 3 * 2);
+  EXPECT_TRUE(none.model.attachments.empty());
+  for (const char* face : {"x_min", "x_max", "y_min", "y_max", "z_min", "z_max"}) {
+    SCOPED_TRACE(face);
+    const Scene s = build(base, {std::string("scene.fixed=") + face});
+    const int axis = face[0] - 'x';
+    const bool at_max = std::string(face).substr(2) == "max";
+    const double target = (axis == 0 ? 1.0 : 0.0) + (at_max ? Vec3(0.3, 0.2, 0.1)[axis] : 0.0);
+    const int per_face[3] = {3 * 2, 4 * 2, 4 * 3};
+    EXPECT_EQ(static_cast<int>(s.model.attachments.size()), per_face[axis]);
+    for (const Attachment& a : s.model.attachments) {
+      EXPECT_NEAR(s.initial.x(a.particle, axis), target, kTol);
+      EXPECT_EQ(s.model.inv_mass[static_cast<std::size_t>(a.particle)], 0.0);
+    }
+  }
+  const Scene five = build(base, {"scene.tets_per_cell=5"});
+  EXPECT_EQ(five.model.tets.size(), 6u * 5u);
+  EXPECT_EQ(none.model.tets.size(), 6u * 6u);
+  // Mass from density: 1000 kg/m^3 x 0.006 m^3.
+  double mass = 0;
+  for (double w : none.model.inv_mass) mass += 1.0 / w;
+  EXPECT_NEAR(mass, 6.0, 1e-9);
+  EXPECT_THROW((void)build(base, {"scene.tets_per_cell=4"}), ConfigError);
+}
+
+TEST(Scenes, PackedSpheres) {
+  const Scene s = build("[scene]\nkind = \"spheres\"\ncount = [2, 3, 4]\nrestitution = 0.5\nfriction = 0.25\n"
+                        "velocity = [0, -1, 0]\n");
+  EXPECT_EQ(s.model.particle_count(), 24);
+  EXPECT_TRUE(s.model.particle_contact);
+  EXPECT_EQ(s.model.particle_restitution, 0.5);
+  EXPECT_EQ(s.model.particle_friction, 0.25);
+  EXPECT_EQ(Vec3(s.initial.v.row(23)), Vec3(0, -1, 0));
+  const Scene off = build("[scene]\nkind = \"spheres\"\nparticle_contact = false\n");
+  EXPECT_FALSE(off.model.particle_contact);
+}
+
+TEST(Scenes, SpheresJitterTooLarge) {
+  const ConfigError e = load_error("[scene]\nkind = \"spheres\"\nradius = 0.05\ngap = 0.05\njitter = 0.003\n");
+  EXPECT_EQ(e.key(), "scene.jitter");
+  EXPECT_EQ(e.source().line, 5);
+}
+
+TEST(Scenes, Colliders) {
+  const Scene s = build(
+      "[scene]\nkind = \"particle\"\n"
+      "[[collider]]\ntype = \"plane\"\nnormal = [0, 2, 0]\noffset = 1\nrestitution = 0.5\n"
+      "[[collider]]\ntype = \"sphere\"\ncenter = [0, 1, 0]\nradius = 0.25\nside = \"inside\"\n"
+      "motion = \"oscillate\"\nmotion_amplitude = [0, 0.1, 0]\nmotion_frequency = 2\n"
+      "[[collider]]\ntype = \"sphere\"\n");
+  ASSERT_EQ(s.model.planes.size(), 1u);
+  EXPECT_EQ(s.model.planes[0].normal, Vec3(0, 2, 0));  // stored as given, not normalised
+  EXPECT_EQ(s.model.planes[0].offset, 1.0);
+  EXPECT_EQ(s.model.planes[0].restitution, 0.5);
+  ASSERT_EQ(s.model.spheres.size(), 2u);
+  EXPECT_EQ(s.model.spheres[0].side, SphereSide::Inside);
+  EXPECT_EQ(s.model.spheres[0].radius, 0.25);
+  ASSERT_EQ(s.model.motions.size(), 1u);
+  EXPECT_EQ(s.model.spheres[0].motion, 0);
+  EXPECT_EQ(s.model.motions[0].kind, MotionKind::Oscillate);
+  EXPECT_EQ(s.model.motions[0].frequency, 2.0);
+  EXPECT_EQ(s.model.spheres[1].motion, -1);
+  EXPECT_EQ(s.model.spheres[1].side, SphereSide::Outside);
+}
+
+TEST(Scenes, MeshScaleTranslateAndPins) {
+  const std::string file = (testing::catalog_dir() / "mesh_box_tets.toml").string();
+  const Config c = load(file, sets({"scene.scale=2", "scene.translate=[1, 0, 0]", "scene.pin_indices=[0, 1]"}));
+  const Scene s = build_scene(c);
+  EXPECT_NEAR(s.initial.x.col(0).minCoeff(), 1.0, kTol);
+  EXPECT_NEAR(s.initial.x.col(0).maxCoeff(), 1.4, kTol);  // the 0.2 m box, scaled by 2
+  EXPECT_EQ(attached(s.model), (std::set<int>{0, 1}));
+  EXPECT_EQ(s.model.tets.size(), 48u);
+  const Config surface = load("mesh_icosphere");
+  const Scene ico = build_scene(surface);
+  EXPECT_EQ(ico.model.triangles.size(), 80u);
+  EXPECT_TRUE(ico.model.surface_closed);
+  EXPECT_TRUE(ico.model.tets.empty());
+  // An explicit format that does not match the file is the reader's error, naming scene.file.
+  try {
+    (void)load("mesh_icosphere", sets({"scene.format=gmsh"}));
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "scene.file");
+  }
+}
+
+// build_scene on a Config changed after validation: what the generators or the model checks
+// refuse becomes a ConfigError naming "scene" at the line of scene.kind.
+TEST(Scenes, GeneratorRefusalBecomesConfigError) {
+  Config c = load_text("description = \"x\"\n[scene]\nkind = \"chain\"\n", "g.toml");
+  c.entries["scene.radius"].value = -1.0;
+  try {
+    (void)build_scene(c);
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "scene");
+    EXPECT_EQ(e.source().file, "g.toml");
+    EXPECT_EQ(e.source().line, 3);
+    EXPECT_EQ(std::string(e.what()).rfind("g.toml:3: the chain scene cannot be built: ChainSpec.radius", 0), 0u)
+        << e.what();
+  }
+}
+
+TEST(Scenes, ModelCheckProblemBecomesConfigError) {
+  Config c = load_text("[scene]\nkind = \"particle\"\n", "g.toml");
+  c.entries["gravity"].value = std::vector<double>{0.0, std::nan(""), 0.0};
+  try {
+    (void)build_scene(c);
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "scene");
+    EXPECT_EQ(e.source().line, 2);
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("g.toml:2: the particle scene: the model is unsound: ", 0), 0u) << what;
+    EXPECT_NE(what.find("gravity"), std::string::npos) << what;
+  }
+}
+
+TEST(Scenes, MeshPinIndexOutOfRange) {
+  const ConfigError e = [] {
+    try {
+      (void)load("mesh_box_tets", sets({"scene.pin_indices=[27]"}));
+    } catch (const ConfigError& e) {
+      return e;
+    }
+    return ConfigError(Source{}, "", "(no error)");
+  }();
+  EXPECT_EQ(e.key(), "scene.pin_indices");
+  EXPECT_EQ(e.source().file, "--set scene.pin_indices=[27]");
+}
+
+}  // namespace
+}  // namespace pbdbench::config
