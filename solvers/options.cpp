@@ -36,8 +36,8 @@ bool parse_projection_order(const std::string& name, ProjectionOrder& out) {
 }
 
 const std::vector<std::string>& seed_departure_ids() {
-  static const std::vector<std::string> ids = {"D1", "D2", "D3", "D4", "D5",
-                                               "D6", "D7", "D8", "D9", "D10"};
+  static const std::vector<std::string> ids = {"D1", "D2", "D3", "D4", "D5", "D6",
+                                               "D7", "D8", "D9", "D10", "D11"};
   return ids;
 }
 
@@ -68,7 +68,8 @@ std::string SolverOptions::validate() const {
   const auto& ids = seed_departure_ids();
   for (const std::string& f : seed_fixes)
     if (std::find(ids.begin(), ids.end(), f) == ids.end())
-      return "solver.seed.fixes: '" + f + "' is not a departure id (D1 ... D10)";
+      return "solver.seed.fixes: '" + f + "' is not a departure id (D1 ... D" +
+             std::to_string(ids.size()) + ")";
   return {};
 }
 

@@ -26,7 +26,7 @@ const char* to_string(ProjectionOrder order);  // "sequential", "reversed", ...
 bool parse_projection_order(const std::string& name, ProjectionOrder& out);
 
 // The ids of the seed listing's departures from Mueller et al. 2007 that solver.seed.fixes may
-// correct, "D1" ... "D10" (docs/seed-departures.md).
+// correct, "D1" ... "D11" (docs/seed-departures.md).
 const std::vector<std::string>& seed_departure_ids();
 
 // Keys shared by every PBD-family solver: [solver] table.

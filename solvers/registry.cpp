@@ -1,0 +1,31 @@
+// The solver catalogue and the factory.
+#include <stdexcept>
+
+#include "solvers/solver.hpp"
+#include "solvers/step_common.hpp"
+
+namespace pbdbench {
+
+const std::vector<SolverInfo>& solver_catalog() {
+  static const std::vector<SolverInfo> catalog = {
+      {"pbd-seed",
+       "the seed article's PBD listing to the letter (float, its departures D1-D11 switchable "
+       "with solver.seed.fixes)"},
+      {"pbd", "Position Based Dynamics, Mueller et al. 2007, Algorithm 1, with substeps"},
+      {"xpbd",
+       "Extended Position Based Dynamics, Macklin et al. 2016, with substeps "
+       "(Macklin et al. 2019)"},
+  };
+  return catalog;
+}
+
+std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& model) {
+  const std::string problem = options.validate();
+  if (!problem.empty()) throw std::invalid_argument(problem);
+  if (options.name == "pbd") return make_pbd_solver(options, model);
+  if (options.name == "xpbd") return make_xpbd_solver(options, model);
+  if (options.name == "pbd-seed") return make_pbd_seed_solver(options, model);
+  throw std::invalid_argument("solver.name = '" + options.name + "' is not a registered solver");
+}
+
+}  // namespace pbdbench
