@@ -69,7 +69,10 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     ++g.count;
     s.constraint_error_max = std::max(s.constraint_error_max, err);
     sum_sq += err * err;
-    if (std::isnan(err)) s.constraint_error_max = kNaN;
+    if (std::isnan(err)) {  // std::max(a, NaN) returns a: keep the NaN visible
+      s.constraint_error_max = kNaN;
+      g.max = kNaN;
+    }
   }
   for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
   s.constraint_error_rms = model.constraints.empty() ? 0.0 : std::sqrt(sum_sq / model.constraints.size());

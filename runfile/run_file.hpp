@@ -14,9 +14,11 @@
 //                      constraint_stiffness (m), constraint_damping (m), constraint_group (m);
 //                      attribute group_names
 //
-// The writer flushes as it goes (every `flush_every_seconds` of wall time, and at every frame):
-// a run killed at any moment leaves a file that h5py opens, with status "incomplete" and every
-// series up to the last flush.
+// The writer flushes as it goes: when a row or a frame arrives at least `flush_every_seconds` of
+// wall time after the last flush (an interval stretched so that flushing, which rewrites the whole
+// file, takes at most about 5 % of the wall time), at flush() and at finish(). A run killed at any
+// moment leaves a file that h5py opens, with status "incomplete" and every series and frame up to
+// the last flush (run_file.cpp says how; results/README.md has the measurements).
 #pragma once
 
 #include <filesystem>

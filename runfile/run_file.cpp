@@ -1,0 +1,677 @@
+// The run file writer and reader.
+//
+// Crash safety. The HDF5 library updates a file's metadata (object headers, chunk B-trees, the
+// superblock's end-of-file address) in place, several separate writes per flush, so a process
+// killed during a flush, or after the metadata cache evicted an entry between flushes, can leave a
+// file that no reader opens. The latest file format (superblock version 3, which SWMR writing
+// needs) is worse after a crash: the superblock keeps "open for writing" flags that make every
+// plain (non-SWMR) open fail until an external tool clears them. tests/runfile/kill_test.py
+// measures all of this; results/README.md has the numbers.
+//
+// So this writer never lets the library write to the published file. The file is built in
+// memory (the core driver, no backing store, default file format); publishing it flushes the
+// library's caches, copies the complete image, writes it to "<path>.tmp" and renames that over
+// <path>. rename() is atomic: at any moment <path> is either the previous complete image or the
+// new one, both valid files with status "incomplete" until finish() publishes the last one.
+// A side benefit: the writer holds no HDF5 lock on <path>, so readers may open it while the run
+// is still going.
+#include "runfile/run_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <H5Cpp.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+
+#include "runfile/build_info.hpp"
+
+namespace pbdbench {
+
+const char* to_string(RunStatus status) {
+  switch (status) {
+    case RunStatus::Incomplete: return "incomplete";
+    case RunStatus::Complete: return "complete";
+    case RunStatus::Exploded: return "exploded";
+    case RunStatus::Failed: return "failed";
+  }
+  return "unknown";
+}
+
+std::string RunFileData::status() const {
+  auto it = attributes.find("status");
+  return it == attributes.end() ? std::string() : it->second;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr long long kFormatVersion = 1;
+constexpr hsize_t kChunkRows = 256;  // rows per chunk of a series dataset
+constexpr int kGzipLevel = 4;        // frames/positions
+// Publishing copies the whole file; it is spaced so that it takes at most about 1/kPublishShare
+// of the wall time even when the file grows large.
+constexpr double kPublishShare = 20.0;
+
+[[noreturn]] void fail(const std::filesystem::path& path, const std::string& what) {
+  throw std::runtime_error("run file " + path.string() + ": " + what);
+}
+
+std::string h5_message(const H5::Exception& e) {
+  std::string msg = e.getFuncName();
+  if (!msg.empty()) msg += ": ";
+  return msg + e.getDetailMsg();
+}
+
+std::string utc_now_iso8601() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Attributes. Strings are variable-length UTF-8 (h5py reads them as str, not bytes).
+
+H5::StrType vlen_utf8() {
+  H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
+  type.setCset(H5T_CSET_UTF8);
+  return type;
+}
+
+// A fresh attribute `name` of this type and space (an existing one is removed first).
+H5::Attribute fresh_attribute(H5::H5Object& obj, const std::string& name, const H5::DataType& type,
+                              const H5::DataSpace& space) {
+  if (obj.attrExists(name)) obj.removeAttr(name);
+  return obj.createAttribute(name, type, space);
+}
+
+// A scalar attribute `name` of this type: the existing one when it has that type (rewritten in
+// place, so that the object header does not grow with each rewrite), else a fresh one.
+H5::Attribute scalar_attribute(H5::H5Object& obj, const std::string& name,
+                               const H5::DataType& type) {
+  if (obj.attrExists(name)) {
+    H5::Attribute attr = obj.openAttribute(name);
+    if (attr.getSpace().getSimpleExtentType() == H5S_SCALAR && attr.getDataType() == type)
+      return attr;
+  }
+  return fresh_attribute(obj, name, type, H5::DataSpace(H5S_SCALAR));
+}
+
+void set_attr(H5::H5Object& obj, const std::string& name, const std::string& value) {
+  const H5::StrType type = vlen_utf8();
+  scalar_attribute(obj, name, type).write(type, value);
+}
+
+void set_attr(H5::H5Object& obj, const std::string& name, const char* value) {
+  set_attr(obj, name, std::string(value ? value : ""));
+}
+
+void set_attr(H5::H5Object& obj, const std::string& name, long long value) {
+  scalar_attribute(obj, name, H5::PredType::STD_I64LE).write(H5::PredType::NATIVE_LLONG, &value);
+}
+
+void set_attr(H5::H5Object& obj, const std::string& name, int value) {
+  scalar_attribute(obj, name, H5::PredType::STD_I32LE).write(H5::PredType::NATIVE_INT, &value);
+}
+
+void set_attr(H5::H5Object& obj, const std::string& name, double value) {
+  scalar_attribute(obj, name, H5::PredType::IEEE_F64LE).write(H5::PredType::NATIVE_DOUBLE, &value);
+}
+
+void set_attr(H5::H5Object& obj, const std::string& name, const std::vector<std::string>& values) {
+  const H5::StrType type = vlen_utf8();
+  const hsize_t n = values.size();
+  H5::Attribute attr = fresh_attribute(obj, name, type, H5::DataSpace(1, &n));
+  if (values.empty()) return;
+  std::vector<const char*> ptrs;
+  for (const std::string& v : values) ptrs.push_back(v.c_str());
+  attr.write(type, ptrs.data());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fixed-size arrays under /model.
+
+template <class T>
+void write_array(H5::Group& group, const std::string& name, const H5::PredType& file_type,
+                 const H5::PredType& mem_type, std::vector<hsize_t> dims, const T* data,
+                 const char* units = nullptr) {
+  const H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
+  H5::DataSet ds = group.createDataSet(name, file_type, space);
+  hsize_t count = 1;
+  for (hsize_t d : dims) count *= d;
+  if (count > 0) ds.write(data, mem_type);
+  if (units) set_attr(ds, "units", units);
+}
+
+template <size_t K>
+std::vector<int> flatten(const std::vector<std::array<int, K>>& rows) {
+  std::vector<int> out;
+  out.reserve(rows.size() * K);
+  for (const auto& r : rows) out.insert(out.end(), r.begin(), r.end());
+  return out;
+}
+
+void write_model(H5::H5File& file, const Model& model) {
+  H5::Group g = file.createGroup("/model");
+  const hsize_t n = static_cast<hsize_t>(model.particle_count());
+  const hsize_t m = model.constraints.size();
+  using P = H5::PredType;
+
+  write_array(g, "rest_positions", P::IEEE_F64LE, P::NATIVE_DOUBLE, {n, 3},
+              model.rest_positions.data(), "m");
+  write_array(g, "inv_mass", P::IEEE_F64LE, P::NATIVE_DOUBLE, {model.inv_mass.size()},
+              model.inv_mass.data(), "1/kg");
+  write_array(g, "radius", P::IEEE_F64LE, P::NATIVE_DOUBLE, {model.radius.size()},
+              model.radius.data(), "m");
+  write_array(g, "gravity", P::IEEE_F64LE, P::NATIVE_DOUBLE, {3}, model.gravity.data(), "m/s^2");
+  const auto edges = flatten(model.edges);
+  const auto triangles = flatten(model.triangles);
+  const auto tets = flatten(model.tets);
+  write_array(g, "edges", P::STD_I32LE, P::NATIVE_INT, {model.edges.size(), 2}, edges.data());
+  write_array(g, "triangles", P::STD_I32LE, P::NATIVE_INT, {model.triangles.size(), 3},
+              triangles.data());
+  write_array(g, "tets", P::STD_I32LE, P::NATIVE_INT, {model.tets.size(), 4}, tets.data());
+
+  std::vector<signed char> kind;
+  std::vector<int> particles;
+  std::vector<double> rest, compliance, stiffness, damping;
+  std::vector<unsigned short> group;
+  for (const Constraint& c : model.constraints) {
+    kind.push_back(static_cast<signed char>(c.kind));
+    particles.insert(particles.end(), c.particles.begin(), c.particles.end());
+    rest.push_back(c.rest);
+    compliance.push_back(c.compliance);
+    stiffness.push_back(c.stiffness);
+    damping.push_back(c.damping);
+    group.push_back(c.group);
+  }
+  write_array(g, "constraint_kind", P::STD_I8LE, P::NATIVE_SCHAR, {m}, kind.data());
+  {
+    H5::DataSet ds = g.openDataSet("constraint_kind");
+    std::vector<std::string> names;
+    for (int k = 0; k < kConstraintKindCount; ++k)
+      names.emplace_back(to_string(static_cast<ConstraintKind>(k)));
+    set_attr(ds, "kind_names", names);
+  }
+  write_array(g, "constraint_particles", P::STD_I32LE, P::NATIVE_INT, {m, 4}, particles.data());
+  write_array(g, "constraint_rest", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m}, rest.data());
+  write_array(g, "constraint_compliance", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m},
+              compliance.data());
+  write_array(g, "constraint_stiffness", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m},
+              stiffness.data(), "1");
+  // Damping is in s / (units of alpha): it depends on the kind, so no units attribute.
+  write_array(g, "constraint_damping", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m}, damping.data());
+  write_array(g, "constraint_group", P::STD_U16LE, P::NATIVE_USHORT, {m}, group.data());
+  set_attr(g, "group_names", model.group_names);
+}
+
+// An extendible dataset of doubles, (rows,) or (rows, width), with the rows not yet written.
+struct Series {
+  H5::DataSet dataset;
+  int width = 1;
+  hsize_t rows = 0;              // rows in the dataset
+  std::vector<double> pending;   // rows not yet written, row-major
+};
+
+Series create_series(H5::Group& group, const std::string& name, int width, std::string_view units,
+                     std::string_view doc, bool deterministic) {
+  const int rank = width == 1 ? 1 : 2;
+  const hsize_t dims[2] = {0, static_cast<hsize_t>(width)};
+  const hsize_t maxdims[2] = {H5S_UNLIMITED, static_cast<hsize_t>(width)};
+  const hsize_t chunk[2] = {kChunkRows, static_cast<hsize_t>(width)};
+  H5::DSetCreatPropList props;
+  props.setChunk(rank, chunk);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  props.setFillValue(H5::PredType::NATIVE_DOUBLE, &nan);
+  Series s{group.createDataSet(name, H5::PredType::IEEE_F64LE,
+                               H5::DataSpace(rank, dims, maxdims), props),
+           width, 0, {}};
+  set_attr(s.dataset, "units", std::string(units));
+  set_attr(s.dataset, "doc", std::string(doc));
+  set_attr(s.dataset, "deterministic", deterministic ? 1 : 0);
+  return s;
+}
+
+// Appends `count` rows (row-major, `width` values each) to an extendible dataset whose first
+// dimension is the row count.
+void append_rows(H5::DataSet& ds, hsize_t& rows, hsize_t count,
+                 const std::vector<hsize_t>& row_dims, const void* data,
+                 const H5::PredType& mem_type) {
+  if (count == 0) return;
+  const int rank = static_cast<int>(row_dims.size()) + 1;
+  std::vector<hsize_t> size{rows + count}, start{rows}, block{count};
+  for (hsize_t d : row_dims) {
+    size.push_back(d);
+    start.push_back(0);
+    block.push_back(d);
+  }
+  ds.extend(size.data());
+  H5::DataSpace file_space = ds.getSpace();  // the space changed with extend()
+  file_space.selectHyperslab(H5S_SELECT_SET, block.data(), start.data());
+  const H5::DataSpace mem_space(rank, block.data());
+  ds.write(data, mem_type, mem_space, file_space);
+  rows += count;
+}
+
+// Writes all of `data` to a new file `tmp`, then renames it over `path`.
+void replace_file(const std::filesystem::path& path, const std::vector<char>& data, bool durable) {
+  const std::string tmp = path.string() + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) fail(path, "cannot create " + tmp + ": " + std::strerror(errno));
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t w = ::write(fd, data.data() + done, data.size() - done);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) {
+      const int err = w < 0 ? errno : ENOSPC;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      fail(path, "cannot write " + tmp + ": " + std::strerror(err));
+    }
+    done += static_cast<size_t>(w);
+  }
+  if (durable && ::fsync(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    fail(path, "cannot sync " + tmp + ": " + std::strerror(err));
+  }
+  if (::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    fail(path, "cannot close " + tmp + ": " + std::strerror(err));
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    fail(path, "cannot rename " + tmp + " to it: " + std::strerror(err));
+  }
+  if (durable) {  // the rename itself: sync the directory
+    const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
+    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd >= 0) {
+      ::fsync(dfd);
+      ::close(dfd);
+    }
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+struct RunFileWriter::Impl {
+  std::filesystem::path path;
+  double flush_every = 0.5;
+  int particles = 0;
+  size_t groups = 0;
+
+  // Declared first, destroyed last: HDF5 keeps the file open while objects in it are open.
+  std::optional<H5::H5File> file;
+  std::vector<Series> series;        // series_table() order, then group series
+  std::vector<std::string> series_names;
+  std::optional<H5::DataSet> frame_time, frame_positions;
+  hsize_t frames = 0;
+
+  size_t pending_rows = 0;
+  long last_step = 0;
+  bool dirty = false;     // the image changed since it was last published
+  bool closed = false;    // finish() ran (or the file was closed)
+  Clock::time_point started = Clock::now();
+  Clock::time_point last_publish = Clock::now();
+  double last_publish_cost = 0.0;  // s
+  std::vector<char> image;         // reused between publications
+
+  void write_pending() {
+    if (pending_rows == 0) return;
+    for (Series& s : series) {
+      std::vector<hsize_t> row_dims;
+      if (s.width != 1) row_dims.push_back(static_cast<hsize_t>(s.width));
+      append_rows(s.dataset, s.rows, pending_rows, row_dims, s.pending.data(),
+                  H5::PredType::NATIVE_DOUBLE);
+      s.pending.clear();
+    }
+    pending_rows = 0;
+    dirty = true;
+  }
+
+  double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
+
+  // Writes the buffered rows, flushes the library and replaces the file on disk with the image.
+  void publish(bool durable) {
+    const Clock::time_point t0 = Clock::now();
+    write_pending();
+    set_attr(*file, "steps_completed", static_cast<long long>(last_step));
+    if (!durable) set_attr(*file, "wall_time", elapsed());
+    file->flush(H5F_SCOPE_GLOBAL);
+    const ssize_t size = H5Fget_file_image(file->getId(), nullptr, 0);
+    if (size <= 0) fail(path, "cannot get the file image from the HDF5 library");
+    image.resize(static_cast<size_t>(size));
+    if (H5Fget_file_image(file->getId(), image.data(), image.size()) != size)
+      fail(path, "cannot copy the file image from the HDF5 library");
+    replace_file(path, image, durable);
+    dirty = false;
+    last_publish = Clock::now();
+    last_publish_cost = std::chrono::duration<double>(last_publish - t0).count();
+  }
+
+  void maybe_publish() {
+    const double since = std::chrono::duration<double>(Clock::now() - last_publish).count();
+    if (since >= std::max(flush_every, kPublishShare * last_publish_cost)) publish(false);
+  }
+
+  void close() {
+    series.clear();
+    frame_time.reset();
+    frame_positions.reset();
+    file.reset();
+    closed = true;
+  }
+};
+
+RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader& header,
+                             const Model& model, double flush_every_seconds)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& w = *impl_;
+  w.path = path;
+  w.flush_every = flush_every_seconds;
+  w.particles = model.particle_count();
+  w.groups = model.group_names.size();
+  H5::Exception::dontPrint();
+
+  // A file left at this path by an earlier run must not survive under this run's name.
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory");
+  std::filesystem::remove(path, ec);
+  if (ec) fail(path, "cannot remove the existing file: " + ec.message());
+
+  try {
+    H5::FileAccPropList fapl;
+    fapl.setCore(1 << 20, false);  // in memory only; publish() writes the image
+    w.file.emplace(path.string(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, fapl);
+    H5::H5File& file = *w.file;
+
+    // Root attributes.
+    set_attr(file, "format_version", kFormatVersion);
+    set_attr(file, "status", to_string(RunStatus::Incomplete));
+    set_attr(file, "status_reason",
+             "not finished: the run is still going, or its process ended before finishing");
+    set_attr(file, "scenario", header.scenario);
+    set_attr(file, "scenario_file", header.scenario_file);
+    set_attr(file, "solver", header.solver);
+    set_attr(file, "config", header.config);
+    set_attr(file, "dt", header.dt);
+    set_attr(file, "steps_planned", static_cast<long long>(header.steps_planned));
+    set_attr(file, "steps_completed", 0LL);
+    set_attr(file, "wall_time", 0.0);
+    set_attr(file, "exploded_step", -1LL);
+    set_attr(file, "exploded_time", -1.0);
+    set_attr(file, "created", utc_now_iso8601());
+    const BuildInfo& build = build_info();
+    set_attr(file, "pbdbench_version", build.version);
+    set_attr(file, "git_commit", build.git_commit);
+    set_attr(file, "compiler", build.compiler);
+    set_attr(file, "build_type", build.build_type);
+    set_attr(file, "cxx_flags", build.cxx_flags);
+
+    write_model(file, model);
+
+    // Series.
+    H5::Group series_group = file.createGroup("/series");
+    for (const SeriesSpec& spec : series_table()) {
+      w.series.push_back(create_series(series_group, std::string(spec.name), spec.width,
+                                       spec.units, spec.doc, spec.deterministic));
+      w.series_names.emplace_back(spec.name);
+    }
+    for (const GroupSeriesSpec& spec : group_series_table()) {
+      for (const std::string& group : model.group_names) {
+        std::string name = std::string(spec.prefix) + group;
+        std::replace(name.begin(), name.end(), '/', '_');  // '/' would make a path
+        if (std::find(w.series_names.begin(), w.series_names.end(), name) != w.series_names.end())
+          fail(path, "series name " + name + " (from group \"" + group + "\") is used twice");
+        const std::string doc = std::string(spec.doc) + " (group \"" + group + "\")";
+        w.series.push_back(create_series(series_group, name, 1, spec.units, doc, true));
+        w.series_names.push_back(name);
+      }
+    }
+
+    // Frames.
+    H5::Group frames = file.createGroup("/frames");
+    {
+      const hsize_t dims[1] = {0}, maxdims[1] = {H5S_UNLIMITED}, chunk[1] = {kChunkRows};
+      H5::DSetCreatPropList props;
+      props.setChunk(1, chunk);
+      w.frame_time.emplace(frames.createDataSet("time", H5::PredType::IEEE_F64LE,
+                                                H5::DataSpace(1, dims, maxdims), props));
+      set_attr(*w.frame_time, "units", "s");
+      set_attr(*w.frame_time, "doc", "simulated time of each frame");
+    }
+    {
+      const hsize_t n = static_cast<hsize_t>(w.particles);
+      const hsize_t dims[3] = {0, n, 3};
+      const hsize_t maxdims[3] = {H5S_UNLIMITED, n > 0 ? n : H5S_UNLIMITED, 3};
+      const hsize_t chunk[3] = {1, std::max<hsize_t>(n, 1), 3};
+      H5::DSetCreatPropList props;
+      props.setChunk(3, chunk);
+      props.setShuffle();
+      props.setDeflate(kGzipLevel);
+      w.frame_positions.emplace(frames.createDataSet("positions", H5::PredType::IEEE_F64LE,
+                                                     H5::DataSpace(3, dims, maxdims), props));
+      set_attr(*w.frame_positions, "units", "m");
+      set_attr(*w.frame_positions, "doc", "particle positions of each frame, (frames, n, 3)");
+    }
+  } catch (const H5::Exception& e) {
+    fail(path, "cannot create the HDF5 file: " + h5_message(e));
+  }
+  w.dirty = true;
+  try {
+    w.publish(false);
+  } catch (const H5::Exception& e) {
+    fail(path, "cannot write the HDF5 file: " + h5_message(e));
+  }
+}
+
+RunFileWriter::~RunFileWriter() {
+  if (!impl_ || impl_->closed) return;
+  try {
+    set_attr(*impl_->file, "status_reason", "the writer was closed before the run finished");
+    impl_->dirty = true;
+    impl_->publish(false);
+  } catch (...) {
+    // Nothing to report from a destructor: the file on disk keeps its last published image,
+    // which says "incomplete".
+  }
+  try {
+    impl_->close();
+  } catch (...) {
+  }
+}
+
+void RunFileWriter::append(const SeriesRow& row) {
+  Impl& w = *impl_;
+  if (w.closed) throw std::logic_error("run file " + w.path.string() + ": append() after finish()");
+  if (!row.sample || !row.report)
+    throw std::invalid_argument("run file " + w.path.string() +
+                                ": append() needs a row with a sample and a report");
+  double values[3];
+  size_t k = 0;
+  for (const SeriesSpec& spec : series_table()) {
+    spec.read(row, values);
+    std::vector<double>& pending = w.series[k++].pending;
+    pending.insert(pending.end(), values, values + spec.width);
+  }
+  for (const GroupSeriesSpec& spec : group_series_table()) {
+    for (size_t g = 0; g < w.groups; ++g) {
+      const double v = g < row.sample->groups.size() ? spec.read(row.sample->groups[g])
+                                                     : std::numeric_limits<double>::quiet_NaN();
+      w.series[k++].pending.push_back(v);
+    }
+  }
+  ++w.pending_rows;
+  w.last_step = row.step;
+  w.dirty = true;
+  try {
+    w.maybe_publish();
+  } catch (const H5::Exception& e) {
+    fail(w.path, "cannot write series: " + h5_message(e));
+  }
+}
+
+void RunFileWriter::append_frame(double time, const Points& x) {
+  Impl& w = *impl_;
+  if (w.closed)
+    throw std::logic_error("run file " + w.path.string() + ": append_frame() after finish()");
+  if (x.rows() != w.particles)
+    throw std::invalid_argument("run file " + w.path.string() + ": a frame of " +
+                                std::to_string(x.rows()) + " particles, the model has " +
+                                std::to_string(w.particles));
+  try {
+    w.write_pending();  // rows and frames reach the image together
+    hsize_t rows = w.frames;
+    append_rows(*w.frame_time, rows, 1, {}, &time, H5::PredType::NATIVE_DOUBLE);
+    rows = w.frames;
+    if (w.particles > 0)
+      append_rows(*w.frame_positions, rows, 1, {static_cast<hsize_t>(w.particles), 3}, x.data(),
+                  H5::PredType::NATIVE_DOUBLE);
+    w.frames += 1;
+    w.dirty = true;
+    w.maybe_publish();
+  } catch (const H5::Exception& e) {
+    fail(w.path, "cannot write a frame: " + h5_message(e));
+  }
+}
+
+void RunFileWriter::flush() {
+  Impl& w = *impl_;
+  if (w.closed || !w.dirty) return;
+  try {
+    w.publish(false);
+  } catch (const H5::Exception& e) {
+    fail(w.path, "cannot flush: " + h5_message(e));
+  }
+}
+
+void RunFileWriter::finish(RunStatus status, const std::string& reason, long steps_completed,
+                           double wall_time, long exploded_step, double exploded_time) {
+  Impl& w = *impl_;
+  if (w.closed) throw std::logic_error("run file " + w.path.string() + ": finish() called twice");
+  try {
+    w.last_step = steps_completed;
+    set_attr(*w.file, "status", to_string(status));
+    set_attr(*w.file, "status_reason", reason);
+    set_attr(*w.file, "wall_time", wall_time);
+    set_attr(*w.file, "exploded_step", static_cast<long long>(exploded_step));
+    set_attr(*w.file, "exploded_time", exploded_time);
+    w.publish(true);
+    w.close();
+  } catch (const H5::Exception& e) {
+    fail(w.path, "cannot finish: " + h5_message(e));
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reader.
+
+namespace {
+
+std::vector<std::string> read_string_list(hid_t attr) {
+  std::vector<std::string> out;
+  const hid_t space = H5Aget_space(attr);
+  const hssize_t n = H5Sget_simple_extent_npoints(space);
+  const hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, H5T_VARIABLE);
+  H5Tset_cset(type, H5T_CSET_UTF8);
+  if (n > 0) {
+    std::vector<char*> buf(static_cast<size_t>(n), nullptr);
+    if (H5Aread(attr, type, buf.data()) >= 0) {
+      for (char* s : buf) out.emplace_back(s ? s : "");
+      H5Dvlen_reclaim(type, space, H5P_DEFAULT, buf.data());
+    }
+  }
+  H5Tclose(type);
+  H5Sclose(space);
+  return out;
+}
+
+}  // namespace
+
+RunFileData read_run_file(const std::filesystem::path& path, bool with_series) {
+  H5::Exception::dontPrint();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) fail(path, "no such file");
+  RunFileData data;
+  try {
+    H5::H5File file(path.string(), H5F_ACC_RDONLY);
+
+    const int nattrs = file.getNumAttrs();
+    for (int i = 0; i < nattrs; ++i) {
+      H5::Attribute attr = file.openAttribute(static_cast<unsigned>(i));
+      const std::string name = attr.getName();
+      if (attr.getSpace().getSimpleExtentNpoints() != 1) continue;
+      switch (attr.getTypeClass()) {
+        case H5T_STRING: {
+          std::string value;
+          attr.read(attr.getStrType(), value);
+          data.attributes[name] = value;
+          break;
+        }
+        case H5T_INTEGER:
+        case H5T_FLOAT: {
+          double value = 0.0;
+          attr.read(H5::PredType::NATIVE_DOUBLE, &value);
+          data.numbers[name] = value;
+          break;
+        }
+        default: break;
+      }
+    }
+
+    if (file.nameExists("/model")) {
+      H5::Group model = file.openGroup("/model");
+      if (model.attrExists("group_names")) {
+        H5::Attribute attr = model.openAttribute("group_names");
+        data.group_names = read_string_list(attr.getId());
+      }
+    }
+
+    if (with_series && file.nameExists("/series")) {
+      H5::Group group = file.openGroup("/series");
+      const hsize_t count = group.getNumObjs();
+      for (hsize_t i = 0; i < count; ++i) {
+        const std::string name = group.getObjnameByIdx(i);
+        if (group.childObjType(name) != H5O_TYPE_DATASET) continue;
+        H5::DataSet ds = group.openDataSet(name);
+        H5::DataSpace space = ds.getSpace();
+        const int rank = space.getSimpleExtentNdims();
+        hsize_t dims[2] = {0, 0};
+        if (rank < 1 || rank > 2) continue;
+        space.getSimpleExtentDims(dims);
+        if (rank == 1) {
+          std::vector<double> values(dims[0]);
+          if (dims[0] > 0) ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
+          data.series[name] = std::move(values);
+        } else if (dims[1] == 3) {
+          Points values(static_cast<Eigen::Index>(dims[0]), 3);
+          if (dims[0] > 0) ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
+          data.series3[name] = std::move(values);
+        }
+      }
+    }
+  } catch (const H5::Exception& e) {
+    fail(path, "cannot read: " + h5_message(e));
+  }
+  return data;
+}
+
+}  // namespace pbdbench

@@ -1,0 +1,160 @@
+#include "runfile/series.hpp"
+
+#include <array>
+#include <sstream>
+
+namespace pbdbench {
+
+namespace {
+
+// Accessors: each writes `width` values of one series from a row. Non-capturing lambdas, so
+// they convert to the plain function pointers the table holds.
+using Read = void (*)(const SeriesRow&, double*);
+
+#define PBDBENCH_SAMPLE(field) \
+  [](const SeriesRow& r, double* out) { out[0] = static_cast<double>(r.sample->field); }
+#define PBDBENCH_SAMPLE3(field)                                                         \
+  [](const SeriesRow& r, double* out) {                                                 \
+    for (int k = 0; k < 3; ++k) out[k] = r.sample->field[k];                            \
+  }
+#define PBDBENCH_REPORT(field) \
+  [](const SeriesRow& r, double* out) { out[0] = static_cast<double>(r.report->field); }
+
+const std::array kSeries = {
+    // Time.
+    SeriesSpec{"time", "s", "simulated time after the step (0 for the initial row)", 1, true,
+               [](const SeriesRow& r, double* out) { out[0] = r.time; }},
+    SeriesSpec{"step", "1", "steps taken (0 for the initial row)", 1, true,
+               [](const SeriesRow& r, double* out) { out[0] = static_cast<double>(r.step); }},
+
+    // Constraint error.
+    SeriesSpec{"constraint_error_max", "1",
+               "max over all constraints of the normalised error: |C|/|rest| for distance and "
+               "volume (|C| when rest = 0), |C| in rad for bending",
+               1, true, PBDBENCH_SAMPLE(constraint_error_max)},
+    SeriesSpec{"constraint_error_rms", "1",
+               "root mean square over all constraints of the same normalised error", 1, true,
+               PBDBENCH_SAMPLE(constraint_error_rms)},
+
+    // Volume.
+    SeriesSpec{"tet_volume", "m^3", "sum of signed tet volumes (NaN without tets)", 1, true,
+               PBDBENCH_SAMPLE(tet_volume)},
+    SeriesSpec{"volume_drift", "1", "(tet_volume - V0) / |V0| (NaN without tets)", 1, true,
+               PBDBENCH_SAMPLE(volume_drift)},
+    SeriesSpec{"surface_volume", "m^3",
+               "volume enclosed by the closed surface (NaN without a closed surface)", 1, true,
+               PBDBENCH_SAMPLE(surface_volume)},
+    SeriesSpec{"surface_volume_drift", "1",
+               "(surface_volume - V0) / |V0| (NaN without a closed surface)", 1, true,
+               PBDBENCH_SAMPLE(surface_volume_drift)},
+
+    // Energy of the dynamic particles.
+    SeriesSpec{"kinetic_energy", "J", "sum of 1/2 m v^2 over dynamic particles", 1, true,
+               PBDBENCH_SAMPLE(kinetic_energy)},
+    SeriesSpec{"potential_energy", "J", "gravitational energy -m g . x of dynamic particles", 1,
+               true, PBDBENCH_SAMPLE(potential_energy)},
+    SeriesSpec{"elastic_energy", "J",
+               "sum of C^2 / (2 alpha) over compliant constraints (alpha > 0)", 1, true,
+               PBDBENCH_SAMPLE(elastic_energy)},
+    SeriesSpec{"total_energy", "J", "kinetic + potential + elastic", 1, true,
+               PBDBENCH_SAMPLE(total_energy)},
+
+    // Momentum of the dynamic particles.
+    SeriesSpec{"linear_momentum", "kg m/s", "sum of m v over dynamic particles", 3, true,
+               PBDBENCH_SAMPLE3(linear_momentum)},
+    SeriesSpec{"angular_momentum", "kg m^2/s",
+               "sum of m (x cross v) over dynamic particles, about the origin", 3, true,
+               PBDBENCH_SAMPLE3(angular_momentum)},
+
+    // Penetration.
+    SeriesSpec{"penetration_max", "m", "deepest penetration of any contact (0 when none)", 1,
+               true, PBDBENCH_SAMPLE(penetration_max)},
+    SeriesSpec{"penetration_count", "1", "contacts in penetration", 1, true,
+               PBDBENCH_SAMPLE(penetration_count)},
+
+    // Explosion indicators.
+    SeriesSpec{"max_speed", "m/s", "max particle speed (NaN when a velocity is not finite)", 1,
+               true, PBDBENCH_SAMPLE(max_speed)},
+    SeriesSpec{"extent", "m", "max distance of a particle from the centroid", 1, true,
+               PBDBENCH_SAMPLE(extent)},
+
+    // What the step did (StepReport; 0 or NaN for the initial row).
+    SeriesSpec{"substeps", "1", "substeps taken in the step", 1, true, PBDBENCH_REPORT(substeps)},
+    SeriesSpec{"iterations", "1", "projection sweeps summed over substeps", 1, true,
+               PBDBENCH_REPORT(iterations)},
+    SeriesSpec{"contacts", "1", "contact constraints built, summed over substeps", 1, true,
+               PBDBENCH_REPORT(contacts)},
+    SeriesSpec{"active_contacts", "1",
+               "contacts with C < 0 at some projection, summed over substeps", 1, true,
+               PBDBENCH_REPORT(active_contacts)},
+    SeriesSpec{"skipped", "1",
+               "projections skipped (undefined gradient or zero generalised mass), summed", 1,
+               true, PBDBENCH_REPORT(skipped)},
+    SeriesSpec{"residual_g", "kg m",
+               "XPBD residual |M (x - x~) - grad C^T lambda|_2 at the end of the step (NaN "
+               "when the solver does not define it)",
+               1, true, PBDBENCH_REPORT(residual_g)},
+    SeriesSpec{"residual_h", "mixed",
+               "XPBD residual |C(x) + alpha~ lambda|_2 in the units of the constraints (NaN "
+               "when the solver does not define it)",
+               1, true, PBDBENCH_REPORT(residual_h)},
+
+    // Wall-clock timings: not deterministic.
+    SeriesSpec{"time_predict", "s", "wall time in prediction, summed over substeps", 1, false,
+               PBDBENCH_REPORT(time_predict)},
+    SeriesSpec{"time_contacts", "s", "wall time in contact generation, summed over substeps", 1,
+               false, PBDBENCH_REPORT(time_contacts)},
+    SeriesSpec{"time_project", "s", "wall time in constraint projection, summed over substeps",
+               1, false, PBDBENCH_REPORT(time_project)},
+    SeriesSpec{"time_velocity", "s", "wall time in the velocity update, summed over substeps", 1,
+               false, PBDBENCH_REPORT(time_velocity)},
+    SeriesSpec{"wall_step", "s", "wall time of the whole step", 1, false,
+               [](const SeriesRow& r, double* out) { out[0] = r.wall_step; }},
+};
+
+#undef PBDBENCH_SAMPLE
+#undef PBDBENCH_SAMPLE3
+#undef PBDBENCH_REPORT
+
+const std::array kGroupSeries = {
+    GroupSeriesSpec{"constraint_error_max_", "1",
+                    "constraint_error_max over the constraints of one group",
+                    [](const GroupError& g) { return g.max; }},
+    GroupSeriesSpec{"constraint_error_rms_", "1",
+                    "constraint_error_rms over the constraints of one group",
+                    [](const GroupError& g) { return g.rms; }},
+};
+
+// Markdown table cells: a literal '|' would end the cell.
+std::string cell(std::string_view text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '|') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::span<const SeriesSpec> series_table() { return kSeries; }
+
+std::span<const GroupSeriesSpec> group_series_table() { return kGroupSeries; }
+
+std::string series_markdown() {
+  std::ostringstream md;
+  md << "| name | shape | units | description |\n";
+  md << "|---|---|---|---|\n";
+  for (const SeriesSpec& s : series_table()) {
+    md << "| `" << s.name << "` | " << (s.width == 1 ? "(rows,)" : "(rows, 3)") << " | "
+       << cell(s.units) << " | " << cell(s.doc)
+       << (s.deterministic ? "" : " (wall clock: not deterministic)") << " |\n";
+  }
+  for (const GroupSeriesSpec& g : group_series_table()) {
+    md << "| `" << g.prefix << "<group>` | (rows,) | " << cell(g.units) << " | " << cell(g.doc)
+       << ", one dataset per group of /model group_names |\n";
+  }
+  return md.str();
+}
+
+}  // namespace pbdbench

@@ -1,0 +1,249 @@
+#!/usr/bin/python3
+"""Plots run files over time, runs overlaid: the standard panel or chosen series.
+
+    plot_runs.py RUN.h5 [RUN.h5 ...] [-o OUT.png] [--series a,b,...]
+
+The standard panel: constraint error (max solid, RMS dashed; log scale), volume drift (tets
+solid, closed surface dashed), energies (kinetic, potential, elastic, total) and the drift of
+the total energy relative to its start. Each run gets one colour, labelled by the configuration
+keys whose values differ between the runs (solver name, iterations, substeps, ...). An exploded
+run is marked with an x at its explosion time and "(exploded)" in its label; an incomplete or
+failed run says so in its label. Series that are NaN throughout, in every run, are left out.
+
+--series plots the named series instead, one panel each (the norm of a 3-vector series).
+The output format follows the extension of OUT (PNG by default).
+"""
+import argparse
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runfile  # noqa: E402
+
+ENERGY_STYLES = [("kinetic_energy", ":", "kinetic"), ("potential_energy", "-.", "potential"),
+                 ("elastic_energy", (0, (1, 3)), "elastic"), ("total_energy", "-", "total")]
+
+
+def values(run, name):
+    """A series as a 1-D array (the norm for a (rows, 3) series), or None."""
+    v = run.series.get(name)
+    if v is None:
+        return None
+    if v.ndim == 2:
+        v = np.linalg.norm(v, axis=1)
+    return v
+
+
+def all_nan(runs, name):
+    for run in runs:
+        v = values(run, name)
+        if v is not None and v.size and not np.all(np.isnan(v)):
+            return False
+    return True
+
+
+def run_labels(runs):
+    keys = runfile.differing_keys(runs) if len(runs) > 1 else []
+    labels = []
+    for run in runs:
+        text = runfile.label(run, keys) if keys else (
+            run.name if len(runs) > 1 else str(run.attrs.get("solver", run.name)))
+        if run.status != "complete":
+            text += f" ({run.status})"
+        labels.append(text)
+    if len(set(labels)) < len(labels):  # identical configurations: tell them apart by file
+        labels = [f"{lab} [{run.name}]" for lab, run in zip(labels, runs)]
+    return labels
+
+
+def explosion_point(run, y):
+    """(t, y) where to mark an exploded run: the explosion time and the last finite value of y
+    at or before it."""
+    t = run.series.get("time")
+    if not run.exploded or t is None or y is None or not len(t):
+        return None
+    te = run.attrs.get("exploded_time", -1.0)
+    if not isinstance(te, (int, float)) or te < 0:
+        te = t[-1]
+    ok = np.isfinite(y) & (t <= te + 1e-12)
+    if not ok.any():
+        return None
+    i = np.nonzero(ok)[0][-1]
+    return te, y[i]
+
+
+def plot_series(ax, runs, colors, name, style="-", transform=None, log=False):
+    """Plots one series of every run on ax; returns True when something was drawn."""
+    drawn = False
+    for run, color in zip(runs, colors):
+        t = run.series.get("time")
+        y = values(run, name)
+        if t is None or y is None or not len(y) or np.all(np.isnan(y)):
+            continue
+        n = min(len(t), len(y))
+        t, y = t[:n], y[:n]
+        if transform is not None:
+            y = transform(y)
+        if log:
+            y = np.where(y > 0, y, np.nan)  # zeros and negatives have no place on a log axis
+        ax.plot(t, y, linestyle=style, color=color, linewidth=1.2)
+        mark = explosion_point(run, y)
+        if mark is not None:
+            ax.plot([mark[0]], [mark[1]], marker="x", color=color, markersize=9, mew=2)
+        drawn = True
+    if log and drawn:
+        ax.set_yscale("log")
+    return drawn
+
+
+def units_of(runs, name):
+    for run in runs:
+        if name in run.units:
+            return run.units[name]
+    return ""
+
+
+def first_finite(y):
+    if y is None:
+        return None
+    finite = y[np.isfinite(y)]
+    return float(finite[0]) if finite.size else None
+
+
+def relative_drift(y):
+    y0 = first_finite(y)
+    if y0 is None:
+        return y
+    return (y - y0) / abs(y0) if y0 != 0 else y - y0
+
+
+def standard_panels(runs):
+    """[(title, ylabel, draw(ax, colors) -> bool, style legend entries)]"""
+    panels = []
+    if not (all_nan(runs, "constraint_error_max") and all_nan(runs, "constraint_error_rms")):
+        panels.append(("constraint error", "normalised error [1]", lambda ax, c: (
+            plot_series(ax, runs, c, "constraint_error_max", "-", log=True)
+            | plot_series(ax, runs, c, "constraint_error_rms", "--", log=True)),
+            [("-", "max"), ("--", "RMS")]))
+    vol = [(n, s, lab) for n, s, lab in [("volume_drift", "-", "tets"),
+                                          ("surface_volume_drift", "--", "surface")]
+           if not all_nan(runs, n)]
+    if vol:
+        panels.append(("volume drift", "(V - V0) / V0 [1]", lambda ax, c: any(
+            [plot_series(ax, runs, c, n, s) for n, s, _ in vol]),
+            [(s, lab) for _, s, lab in vol]))
+    energies = [(n, s, lab) for n, s, lab in ENERGY_STYLES if not all_nan(runs, n)]
+    if energies:
+        panels.append(("energy", "energy [J]", lambda ax, c: any(
+            [plot_series(ax, runs, c, n, s) for n, s, _ in energies]),
+            [(s, lab) for _, s, lab in energies]))
+    if not all_nan(runs, "total_energy"):
+        # Relative to |E0|; a run that starts at E0 = 0 has no relative drift: E - E0 in J.
+        starts = [first_finite(values(r, "total_energy")) for r in runs]
+        if all(e0 != 0 for e0 in starts if e0 is not None):
+            ylabel = "(E - E0) / |E0| [1]"
+        elif all(e0 == 0 for e0 in starts if e0 is not None):
+            ylabel = "E - E0 [J]"
+        else:
+            ylabel = "(E - E0) / |E0| [1], or E - E0 [J] where E0 = 0"
+        panels.append(("total energy drift", ylabel,
+                       lambda ax, c: plot_series(ax, runs, c, "total_energy", "-",
+                                                 transform=relative_drift), []))
+    return panels
+
+
+def chosen_panels(runs, names):
+    panels = []
+    for name in names:
+        known = any(name in r.series for r in runs)
+        if not known:
+            raise SystemExit(f"plot_runs.py: no series named {name!r} in these files "
+                             f"(they have: {', '.join(sorted(runs[0].series))})")
+        if all_nan(runs, name):
+            print(f"plot_runs.py: {name} is NaN throughout in every run: left out",
+                  file=sys.stderr)
+            continue
+        width3 = any(name in r.series and r.series[name].ndim == 2 for r in runs)
+        log = name.startswith("constraint_error") or name.startswith("residual")
+        ylabel = f"{'|' + name + '|' if width3 else name} [{units_of(runs, name)}]"
+        panels.append((name, ylabel,
+                       lambda ax, c, name=name, log=log: plot_series(ax, runs, c, name, log=log),
+                       []))
+    return panels
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("runs", nargs="+", metavar="RUN.h5")
+    ap.add_argument("-o", "--output", default="runs.png", help="output image (default runs.png)")
+    ap.add_argument("--series", help="comma-separated series to plot instead of the standard panel")
+    ap.add_argument("--title", help="figure title (default: the scenario)")
+    args = ap.parse_args(argv)
+
+    runs = []
+    for path in args.runs:
+        try:
+            runs.append(runfile.load(path, frames=False, model=False))
+        except runfile.RunFileError as e:
+            print(f"plot_runs.py: cannot read run file {e}", file=sys.stderr)
+            return 1
+    for run in runs:
+        if "time" not in run.series:
+            print(f"plot_runs.py: {run.path} has no /series/time", file=sys.stderr)
+            return 1
+
+    if args.series:
+        panels = chosen_panels(runs, [s.strip() for s in args.series.split(",") if s.strip()])
+    else:
+        panels = standard_panels(runs)
+    if not panels:
+        print("plot_runs.py: nothing to plot: every series is NaN or empty", file=sys.stderr)
+        return 1
+
+    colors = [plt.cm.tab10(i % 10) for i in range(len(runs))]
+    labels = run_labels(runs)
+    ncols = 2 if len(panels) > 1 else 1
+    nrows = (len(panels) + ncols - 1) // ncols
+    fig, axes = plt.subplots(nrows, ncols, figsize=(6.4 * ncols, 3.6 * nrows + 0.8),
+                             squeeze=False)
+    for ax, (title, ylabel, draw, styles) in zip(axes.flat, panels):
+        draw(ax, colors)
+        ax.set_title(title)
+        ax.set_xlabel(f"time [{units_of(runs, 'time') or 's'}]")
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        if styles:
+            handles = [plt.Line2D([], [], color="0.3", linestyle=s) for s, _ in styles]
+            ax.legend(handles, [lab for _, lab in styles], fontsize=8, loc="best")
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+
+    handles = [plt.Line2D([], [], color=c, linewidth=2) for c in colors]
+    if any(r.exploded for r in runs):
+        handles.append(plt.Line2D([], [], color="0.3", marker="x", linestyle="none", mew=2))
+        labels = labels + ["explosion"]
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 3), fontsize=9,
+               frameon=False)
+    scenario = runs[0].attrs.get("scenario", "")
+    fig.suptitle(args.title or (f"scenario {scenario}" if scenario else ""))
+    legend_rows = (len(labels) + 2) // 3
+    fig.tight_layout(rect=(0, min(0.05 + 0.04 * legend_rows, 0.4), 1, 0.96))
+    try:
+        fig.savefig(args.output, dpi=120)
+    except (OSError, ValueError) as e:
+        print(f"plot_runs.py: cannot write {args.output}: {e}", file=sys.stderr)
+        return 1
+    plt.close(fig)
+    print(f"wrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
