@@ -117,8 +117,9 @@ std::vector<KeySpec> group_keys(const std::string& prefix, const std::string& wh
            "XPBD compliance alpha of the " + what + " (inverse stiffness; 0 = rigid)"),
       real(join(prefix, "stiffness"), def.stiffness, "1", within(0, 1),
            "PBD stiffness k of the " + what + " (Mueller et al. 2007, sec. 3.3)"),
-      real(join(prefix, "damping"), def.damping, "s", at_least(0),
-           "XPBD damping beta of the " + what + " (Macklin et al. 2016, eq. 26)"),
+      real(join(prefix, "damping"), def.damping, "s/(" + compliance_units + ")", at_least(0),
+           "XPBD damping coefficient beta of the " + what +
+               " (Macklin et al. 2016, eq. 26: gamma = alpha beta / h is dimensionless)"),
   };
 }
 

@@ -21,7 +21,7 @@ struct ParticleRange {
 struct ConstraintParams {
   double compliance = 0.0;  // alpha (units of C^2/J; m/N for distance), >= 0
   double stiffness = 1.0;   // PBD k in [0, 1]
-  double damping = 0.0;     // XPBD beta, s, >= 0
+  double damping = 0.0;     // XPBD beta >= 0, s / (units of alpha): N s/m for distance
 };
 
 // One free particle.

@@ -54,7 +54,8 @@ struct Constraint {
   double compliance = 0.0;  // alpha, XPBD compliance: inverse stiffness in units of C^2/J
                             // (m/N for distance); 0 = rigid
   double stiffness = 1.0;   // k in [0, 1], PBD's dimensionless stiffness (Mueller 2007, sec. 3.3)
-  double damping = 0.0;     // beta >= 0, XPBD damping (Macklin 2016, eq. 26), s
+  double damping = 0.0;     // beta >= 0, XPBD damping coefficient (Macklin 2016, eq. 26), in
+                            // s / (units of alpha), N s/m for distance: gamma = alpha beta / h
   std::uint16_t group = 0;  // index into Model::group_names: "stretch", "shear", "bending", ...
 };
 

@@ -1,0 +1,287 @@
+// pbdbench: the command-line front end. It depends on every module; nothing depends on it.
+//
+// Exit codes (stable, for scripts):
+//   0  success (run complete; sweep: every run complete or exploded)
+//   1  failure (a run failed, a file could not be written or read)
+//   2  bad input (usage, scenario or sweep file, --set override)
+//   3  run exploded (run only: the file records where)
+//   4  run interrupted (SIGINT/SIGTERM: the file is marked incomplete)
+#include <signal.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "config/config.hpp"
+#include "harness/runner.hpp"
+#include "harness/summary.hpp"
+#include "harness/sweep.hpp"
+#include "runfile/build_info.hpp"
+#include "runfile/series.hpp"
+#include "solvers/solver.hpp"
+
+namespace fs = std::filesystem;
+using namespace pbdbench;
+
+namespace {
+
+constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitExploded = 3, kExitInterrupted = 4;
+
+std::atomic<bool> g_stop{false};
+
+void on_signal(int) { g_stop.store(true); }
+
+void install_signal_handlers() {
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+std::vector<config::Override> parse_overrides(const std::vector<std::string>& sets) {
+  std::vector<config::Override> out;
+  for (const std::string& s : sets) out.push_back(config::parse_override(s));
+  return out;
+}
+
+// 64-bit FNV-1a, for short stable file names.
+std::string short_hash(const std::string& text) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : text) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return fmt::format("{:08x}", static_cast<std::uint32_t>(h ^ (h >> 32)));
+}
+
+// A progress line on a terminal, redrawn at most ten times a second.
+class Progress {
+ public:
+  explicit Progress(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
+  void operator()(long done, long total) {
+    if (!enabled_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (done < total && now - last_ < std::chrono::milliseconds(100)) return;
+    last_ = now;
+    const int width = 30;
+    const int filled = total > 0 ? static_cast<int>(width * done / total) : width;
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    std::fprintf(stderr, "\r  [%s%s] %3ld%%  step %ld/%ld  %.1f s", std::string(filled, '#').c_str(),
+                 std::string(width - filled, ' ').c_str(), total > 0 ? 100 * done / total : 100, done,
+                 total, elapsed);
+    if (done >= total) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+  }
+  void end() {
+    if (enabled_) std::fprintf(stderr, "\n");
+  }
+
+ private:
+  bool enabled_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point last_{};
+};
+
+fs::path self_executable() {
+  std::error_code ec;
+  fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) throw std::runtime_error("cannot locate the pbdbench executable");
+  return p;
+}
+
+int cmd_run(const std::string& scenario, const std::string& solver, const std::vector<std::string>& sets,
+            const std::string& out_arg, bool quiet) {
+  std::vector<config::Override> overrides = parse_overrides(sets);
+  if (!solver.empty()) overrides.insert(overrides.begin(), {"solver.name", solver});
+  const config::Config cfg = config::load(scenario, overrides);
+  const std::string solver_name = cfg.get_string("solver.name");
+  const fs::path out = out_arg.empty() ? fs::path("results") / "runs" / cfg.scenario_name /
+                                             (solver_name + "-" + short_hash(cfg.to_toml()) + ".h5")
+                                       : fs::path(out_arg);
+  install_signal_handlers();
+  Progress progress(!quiet);
+  RunControl control;
+  control.progress = [&](long done, long total) { progress(done, total); };
+  control.stop = &g_stop;
+  const RunOutcome r = run_config(cfg, out, control);
+  const char* status = to_string(r.status);
+  std::cout << fmt::format("{} [{}]: {} after {}/{} steps in {:.2f} s ({:.2f} s in the solver) -> {}\n",
+                           cfg.scenario_name, solver_name, status, r.steps_completed, r.steps_planned,
+                           r.wall_time, r.solver_time, out.string());
+  if (!r.reason.empty()) std::cout << "  " << r.reason << "\n";
+  if (!quiet) std::cout << summary_table({{cfg.scenario_name + " " + solver_name, out}});
+  switch (r.status) {
+    case RunStatus::Complete: return kExitOk;
+    case RunStatus::Exploded: return kExitExploded;
+    case RunStatus::Incomplete: return kExitInterrupted;
+    case RunStatus::Failed: return kExitFailure;
+  }
+  return kExitFailure;
+}
+
+int cmd_sweep(const std::string& file, const std::string& out_arg, int jobs, bool force, const std::string& shard,
+              const std::vector<std::string>& sets, bool quiet) {
+  const SweepSpec spec = load_sweep(file);
+  SweepOptions opt;
+  opt.out_dir = out_arg.empty() ? fs::path("results") / "sweeps" / spec.name : fs::path(out_arg);
+  opt.jobs = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  opt.force = force;
+  opt.extra = parse_overrides(sets);
+  opt.executable = self_executable();
+  opt.progress = !quiet;
+  if (!shard.empty()) {
+    const auto slash = shard.find('/');
+    try {
+      if (slash == std::string::npos) throw std::invalid_argument("no slash");
+      opt.shard_index = std::stoi(shard.substr(0, slash));
+      opt.shard_count = std::stoi(shard.substr(slash + 1));
+    } catch (const std::exception&) {
+      throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
+    }
+    if (opt.shard_count < 1 || opt.shard_index < 0 || opt.shard_index >= opt.shard_count)
+      throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
+  }
+  const SweepResult result = run_sweep(spec, opt, std::cout);
+  std::vector<SummaryEntry> entries;
+  size_t k = 0;
+  for (size_t i = 0; i < spec.runs.size(); ++i) {
+    if (static_cast<int>(i % static_cast<size_t>(opt.shard_count)) != opt.shard_index) continue;
+    std::string label;
+    for (const auto& [path, value] : spec.runs[i].params) label += (label.empty() ? "" : " ") + path + "=" + value;
+    entries.push_back({label.empty() ? spec.runs[i].stem : label, result.runs[k++].file});
+  }
+  std::cout << "\n" << spec.name << (spec.description.empty() ? "" : ": " + spec.description) << "\n";
+  std::cout << summary_table(entries);
+  return result.ok() ? kExitOk : kExitFailure;
+}
+
+int cmd_list() {
+  std::cout << "Scenarios (" << config::scenarios_dir().string() << "):\n";
+  const auto scenarios = config::list_scenarios();
+  size_t w = 0, wk = 0;
+  for (const auto& s : scenarios) {
+    w = std::max(w, s.name.size());
+    wk = std::max(wk, s.kind.size());
+  }
+  for (const auto& s : scenarios)
+    std::cout << fmt::format("  {:<{}}  {:<{}}  {}\n", s.name, w, s.kind, wk, s.description);
+  std::cout << "\nSolvers:\n";
+  for (const auto& s : solver_catalog()) std::cout << fmt::format("  {:<10}  {}\n", s.name, s.doc);
+  std::cout << "\nScene kinds (scene.kind):\n";
+  for (const auto& k : config::scene_kinds()) std::cout << fmt::format("  {:<10}  {}\n", k.name, k.doc);
+  return kExitOk;
+}
+
+int cmd_describe(const std::string& what, const std::vector<std::string>& sets) {
+  for (const auto& k : config::scene_kinds()) {
+    if (k.name == what && sets.empty()) {
+      std::cout << config::describe_keys(what);
+      return kExitOk;
+    }
+  }
+  const config::Config cfg = config::load(what, parse_overrides(sets));
+  std::cout << config::describe_config(cfg);
+  return kExitOk;
+}
+
+int cmd_summary(const std::vector<std::string>& files, const std::string& index_dir, bool csv) {
+  std::vector<SummaryEntry> entries;
+  for (const std::string& f : files) entries.push_back({fs::path(f).stem().string(), f});
+  if (!index_dir.empty()) {
+    // Files of a sweep directory, in the order of its index.
+    const fs::path dir = fs::is_directory(index_dir) ? fs::path(index_dir) : fs::path(index_dir).parent_path();
+    std::vector<fs::path> h5;
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.path().extension() == ".h5") h5.push_back(e.path());
+    std::sort(h5.begin(), h5.end());
+    for (const auto& p : h5) entries.push_back({p.stem().string(), p});
+  }
+  if (entries.empty()) throw config::ConfigError({"summary", 0}, "", "no run files given");
+  std::cout << (csv ? summary_csv(entries) : summary_table(entries));
+  return kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"pbdbench: runs position-based dynamics solvers and references on the same scenes, "
+               "and measures how far each is from the truth and what it costs."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(build_info().version) + " (" + build_info().git_commit + ")");
+
+  std::string scenario, solver, out, file, shard, index_dir;
+  std::vector<std::string> sets, files;
+  bool quiet = false, force = false, csv = false, markdown = false;
+  int jobs = 0;
+
+  auto* run = app.add_subcommand("run", "Run one scenario with one solver and write its run file");
+  run->add_option("scenario", scenario, "A scenario file, or a name from scenarios/")->required();
+  run->add_option("--solver", solver, "Solver name (same as --set solver.name=NAME)");
+  run->add_option("--set", sets, "Override a key by its dotted path: --set time.dt=0.005 (repeatable)");
+  run->add_option("--out", out, "Run file to write (default results/runs/<scenario>/<solver>-<hash>.h5)");
+  run->add_flag("--quiet", quiet, "Print only the one-line result");
+
+  auto* sweep = app.add_subcommand("sweep", "Run a sweep file's grid in parallel, skipping runs already complete");
+  sweep->add_option("file", file, "Sweep file (TOML)")->required();
+  sweep->add_option("--out", out, "Directory for the run files (default results/sweeps/<name>)");
+  sweep->add_option("--jobs,-j", jobs, "Runs at once (default: the number of cores)");
+  sweep->add_flag("--force", force, "Rerun runs that are already complete");
+  sweep->add_option("--shard", shard, "Run only shard I of N (I/N, 0-based) for a job array");
+  sweep->add_option("--set", sets, "Override a key in every run (repeatable)");
+  sweep->add_flag("--quiet", quiet, "Print only the summary");
+
+  app.add_subcommand("list", "List the scenarios, solvers and scene kinds");
+
+  auto* describe = app.add_subcommand("describe", "Describe a scenario's keys (types, defaults, units, docs) or a scene kind's");
+  describe->add_option("what", scenario, "A scenario (file or name) or a scene kind")->required();
+  describe->add_option("--set", sets, "Overrides to apply before describing (repeatable)");
+
+  auto* summary = app.add_subcommand("summary", "Print a table of what run files measured");
+  summary->add_option("files", files, "Run files");
+  summary->add_option("--dir", index_dir, "Every run file of a sweep directory");
+  summary->add_flag("--csv", csv, "Comma-separated values");
+
+  auto* series = app.add_subcommand("series", "Print the logged series (name, shape, units, doc)");
+  series->add_flag("--markdown", markdown, "As the Markdown table of results/README.md");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? kExitOk : kExitBadInput;
+  }
+
+  try {
+    if (*run) return cmd_run(scenario, solver, sets, out, quiet);
+    if (*sweep) return cmd_sweep(file, out, jobs, force, shard, sets, quiet);
+    if (app.got_subcommand("list")) return cmd_list();
+    if (*describe) return cmd_describe(scenario, sets);
+    if (*summary) return cmd_summary(files, index_dir, csv);
+    if (*series) {
+      if (markdown) {
+        std::cout << series_markdown();
+      } else {
+        for (const SeriesSpec& s : series_table())
+          std::cout << fmt::format("{:<22} {:<3} {:<10} {}\n", s.name, s.width == 1 ? "1" : "3", s.units, s.doc);
+        for (const GroupSeriesSpec& g : group_series_table())
+          std::cout << fmt::format("{:<22} {:<3} {:<10} {}\n", std::string(g.prefix) + "<group>", "1", g.units, g.doc);
+      }
+      return kExitOk;
+    }
+  } catch (const config::ConfigError& e) {
+    std::cerr << "pbdbench: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "pbdbench: " << e.what() << "\n";
+    return kExitFailure;
+  }
+  return kExitBadInput;
+}

@@ -1,0 +1,98 @@
+#include "harness/runner.hpp"
+
+#include <chrono>
+#include <exception>
+
+#include "solvers/solver.hpp"
+
+namespace pbdbench {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+}  // namespace
+
+RunOutcome run_config(const config::Config& config, const std::filesystem::path& out,
+                      const RunControl& control) {
+  const auto t_start = Clock::now();
+  // Everything that can be refused is refused before the file is created.
+  Scene scene = config::build_scene(config);
+  const SolverOptions solver_opts = config::solver_options(config);
+  const config::RunOptions run = config::run_options(config);
+  const Model& model = scene.model;
+  State state = std::move(scene.initial);
+  auto solver = make_solver(solver_opts, model);
+
+  RunOutcome outcome;
+  outcome.steps_planned = run.steps();
+
+  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
+  RunHeader header;
+  header.scenario = config.scenario_name;
+  header.scenario_file = config.file.string();
+  header.solver = solver->name();
+  header.config = config.to_toml();
+  header.dt = run.dt;
+  header.steps_planned = outcome.steps_planned;
+  RunFileWriter writer(out, header, model);
+
+  const MetricsBaseline baseline = measure_baseline(model, state);
+  const StepReport initial_report;
+  Sample sample = measure(model, state, baseline);
+  writer.append({state.time, state.step, 0.0, &sample, &initial_report});
+  writer.append_frame(state.time, state.x);
+
+  try {
+    for (long k = 1; k <= outcome.steps_planned; ++k) {
+      const auto t0 = Clock::now();
+      const StepReport report = solver->step(model, state, run.dt);
+      const double wall = seconds_since(t0);
+      outcome.solver_time += wall;
+      sample = measure(model, state, baseline);
+      writer.append({state.time, state.step, wall, &sample, &report});
+      outcome.steps_completed = k;
+      const std::string why = explosion_reason(model, state, sample, run.limits, baseline);
+      if (!why.empty()) {
+        writer.append_frame(state.time, state.x);
+        outcome.status = RunStatus::Exploded;
+        outcome.reason = why;
+        outcome.exploded_step = k;
+        outcome.final_sample = sample;
+        outcome.wall_time = seconds_since(t_start);
+        writer.finish(RunStatus::Exploded, why, k, outcome.wall_time, k, state.time);
+        return outcome;
+      }
+      if (k % run.frame_every == 0 || k == outcome.steps_planned)
+        writer.append_frame(state.time, state.x);
+      if (control.progress) control.progress(k, outcome.steps_planned);
+      if (control.stop != nullptr && control.stop->load() && k < outcome.steps_planned) {
+        writer.append_frame(state.time, state.x);
+        outcome.status = RunStatus::Incomplete;
+        outcome.reason = "interrupted after step " + std::to_string(k);
+        outcome.final_sample = sample;
+        outcome.wall_time = seconds_since(t_start);
+        writer.finish(RunStatus::Incomplete, outcome.reason, k, outcome.wall_time);
+        return outcome;
+      }
+    }
+  } catch (const std::exception& e) {
+    outcome.status = RunStatus::Failed;
+    outcome.reason = e.what();
+    outcome.final_sample = sample;
+    outcome.wall_time = seconds_since(t_start);
+    writer.finish(RunStatus::Failed, outcome.reason, outcome.steps_completed, outcome.wall_time);
+    return outcome;
+  }
+  outcome.status = RunStatus::Complete;
+  outcome.final_sample = sample;
+  outcome.wall_time = seconds_since(t_start);
+  writer.finish(RunStatus::Complete, "", outcome.steps_completed, outcome.wall_time);
+  return outcome;
+}
+
+}  // namespace pbdbench

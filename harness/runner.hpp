@@ -1,0 +1,45 @@
+// Runs one configuration to its end and writes its run file: the loop every command shares.
+//
+//   scene, solver, writer  <- config
+//   row 0: metrics of the initial state
+//   each step: solver.step(model, state, dt) -> metrics -> one row (-> a frame every k steps)
+//              explosion check: NaN, Inf, speed or extent beyond the limits -> stop, "exploded"
+//   finish: "complete", "exploded", "failed" (an exception), or "incomplete" (interrupted)
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+#include "config/config.hpp"
+#include "metrics/metrics.hpp"
+#include "runfile/run_file.hpp"
+
+namespace pbdbench {
+
+struct RunOutcome {
+  RunStatus status = RunStatus::Incomplete;
+  std::string reason;       // why it exploded, failed or stopped; empty when complete
+  long steps_planned = 0;
+  long steps_completed = 0;
+  long exploded_step = -1;  // the step at which the explosion was detected, or -1
+  double wall_time = 0.0;   // s, the whole run including metrics and output
+  double solver_time = 0.0; // s, inside solver.step() only
+  Sample final_sample;      // metrics of the last state
+};
+
+struct RunControl {
+  // Called after each step with (steps completed, steps planned); may be empty.
+  std::function<void(long, long)> progress;
+  // When set and true, the run stops after the current step and is recorded as incomplete.
+  const std::atomic<bool>* stop = nullptr;
+};
+
+// Runs `config` and writes `out` (its directory is created). Throws config::ConfigError when the
+// scene cannot be built (before any file is written) and std::runtime_error when the file cannot
+// be written; everything that goes wrong after the file exists is recorded in it.
+RunOutcome run_config(const config::Config& config, const std::filesystem::path& out,
+                      const RunControl& control = {});
+
+}  // namespace pbdbench

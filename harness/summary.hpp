@@ -1,0 +1,24 @@
+// A table of what a set of runs measured, read back from their run files: the summary the
+// command line prints after a run, a sweep or the default study.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace pbdbench {
+
+struct SummaryEntry {
+  std::string label;             // how the run is named in the table
+  std::filesystem::path file;    // its run file
+};
+
+// One row per entry: status, steps, constraint error (final and peak max, final RMS), volume
+// drift, energy change, peak penetration, solver milliseconds per step. Unreadable files get a
+// row saying so.
+std::string summary_table(const std::vector<SummaryEntry>& entries);
+
+// The same as comma-separated values with a header row and full precision.
+std::string summary_csv(const std::vector<SummaryEntry>& entries);
+
+}  // namespace pbdbench

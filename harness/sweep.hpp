@@ -1,0 +1,78 @@
+// Sweeps: one scenario run over a grid of parameters, in parallel, skipping runs already done.
+//
+// A sweep file (TOML):
+//   name = "chain_iterations_vs_substeps"
+//   scenario = "hanging_chain"            # a catalog name, or a path relative to this file
+//   description = "..."
+//   [set]                                 # overrides applied to every run
+//   "time.duration" = 2.0
+//   [grid]                                # every combination of these values
+//   "solver.name" = ["pbd", "xpbd"]
+//   [[case]]                              # optional: explicit sets of overrides, each combined
+//   "solver.iterations" = 10              #   with every grid point
+//   "solver.substeps" = 1
+//
+// Keys may be quoted dotted paths ("solver.iterations") or nested tables ([set.solver]).
+// Each run writes <out>/<parameters>.h5 and a log beside it; <out>/index.json lists them all.
+#pragma once
+
+#include <filesystem>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "config/config.hpp"
+
+namespace pbdbench {
+
+struct SweepRun {
+  std::vector<std::pair<std::string, std::string>> params;  // swept path -> TOML value text
+  std::vector<config::Override> overrides;                  // [set], then the run's params
+  std::string stem;                                         // file name without extension
+};
+
+struct SweepSpec {
+  std::string name;
+  std::string description;
+  std::string scenario;               // resolved path of the scenario file
+  std::filesystem::path file;         // the sweep file
+  std::vector<std::string> parameters;  // swept paths, in order (grid keys, then case keys)
+  std::vector<SweepRun> runs;           // the expanded runs, in a stable order
+};
+
+// Reads and expands a sweep file. Throws config::ConfigError naming the file and line.
+SweepSpec load_sweep(const std::filesystem::path& path);
+
+struct SweepOptions {
+  std::filesystem::path out_dir;     // where the run files go
+  int jobs = 1;                      // runs at once (child processes)
+  bool force = false;                // rerun runs that are already complete
+  int shard_index = 0;               // run only the runs with index % shard_count == shard_index
+  int shard_count = 1;
+  std::vector<config::Override> extra;  // --set overrides applied after the sweep's own
+  std::filesystem::path executable;  // the pbdbench binary that runs each child
+  bool progress = false;             // print a line per finished run
+};
+
+struct SweepRunResult {
+  std::filesystem::path file;
+  std::string status;  // complete, exploded, failed, incomplete, refused
+  bool skipped = false;  // already complete with the same configuration and build
+  std::string message;   // the failure or refusal, when any
+};
+
+struct SweepResult {
+  std::vector<SweepRunResult> runs;  // one per run of this shard, in the sweep's order
+  bool ok() const;                   // no run failed or was refused
+};
+
+// Validates every run's configuration first (nothing starts if one is refused: the error names
+// the sweep file and the run), then runs those not already complete, `jobs` at a time, and
+// writes <out_dir>/index.json. Messages go to `log`.
+SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::ostream& log);
+
+// True when `file` holds a finished run (complete or exploded) of exactly this configuration
+// text, made by this build (same git commit).
+bool run_is_current(const std::filesystem::path& file, const std::string& config_toml);
+
+}  // namespace pbdbench

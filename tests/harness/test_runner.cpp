@@ -1,0 +1,139 @@
+// The run loop: a run file per run, explosion detection and stop, interruption, determinism.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <bit>
+#include <cstdint>
+#include <cstring>
+#include <cmath>
+#include <filesystem>
+
+#include "config/config.hpp"
+#include "harness/runner.hpp"
+#include "runfile/run_file.hpp"
+#include "runfile/series.hpp"
+
+namespace fs = std::filesystem;
+using namespace pbdbench;
+
+namespace {
+
+fs::path temp_file(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / "pbdbench_test_runner";
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+const char* kFreeFall = R"(
+name = "free_fall_test"
+gravity = [0, -10, 0]
+[time]
+dt = 0.01
+duration = 1.0
+[solver]
+name = "xpbd"
+[scene]
+kind = "particle"
+position = [0, 100, 0]
+velocity = [0, 0, 0]
+)";
+
+}  // namespace
+
+TEST(Runner, CompleteRunWritesEveryStep) {
+  const config::Config cfg = config::load_text(kFreeFall, "free_fall_test.toml");
+  const fs::path out = temp_file("complete.h5");
+  const RunOutcome r = run_config(cfg, out);
+  EXPECT_EQ(r.status, RunStatus::Complete);
+  EXPECT_EQ(r.steps_planned, 100);
+  EXPECT_EQ(r.steps_completed, 100);
+  const RunFileData d = read_run_file(out);
+  EXPECT_EQ(d.status(), "complete");
+  ASSERT_EQ(d.series.at("time").size(), 101u);  // the initial state, then one row a step
+  EXPECT_NEAR(d.series.at("time").back(), 1.0, 1e-12);
+  EXPECT_EQ(d.attributes.at("solver"), "xpbd");
+  EXPECT_EQ(d.attributes.at("config"), cfg.to_toml());
+  // Free fall: kinetic energy after 1 s of g = 10 from rest is 1/2 m (g t)^2 = 50 J (m = default mass).
+  const double m = cfg.get_double("scene.mass");
+  EXPECT_NEAR(d.series.at("kinetic_energy").back(), 0.5 * m * 100.0, 1e-9 * m * 100.0);
+}
+
+TEST(Runner, ExplosionStopsTheRunAtTheStepItIsDetected) {
+  // With dt = 0.01 and symplectic Euler the speed after step k is v_k = 10 * 0.01 k m/s, which
+  // first exceeds 5.05 m/s at k = 51 (the limit sits between v_50 and v_51, clear of round-off).
+  const config::Config cfg =
+      config::load_text(kFreeFall, "free_fall_test.toml", {{"limits.max_speed", "5.05"}});
+  const fs::path out = temp_file("exploded.h5");
+  const RunOutcome r = run_config(cfg, out);
+  EXPECT_EQ(r.status, RunStatus::Exploded);
+  EXPECT_EQ(r.exploded_step, 51);
+  EXPECT_NE(r.reason.find("limits.max_speed"), std::string::npos) << r.reason;
+  const RunFileData d = read_run_file(out);
+  EXPECT_EQ(d.status(), "exploded");
+  EXPECT_EQ(d.numbers.at("exploded_step"), 51);
+  EXPECT_EQ(d.series.at("time").size(), 52u);  // everything up to the explosion is kept
+  EXPECT_GT(d.series.at("max_speed").back(), 5.0);
+}
+
+TEST(Runner, StopFlagLeavesAnIncompleteFile) {
+  const config::Config cfg = config::load_text(kFreeFall, "free_fall_test.toml");
+  const fs::path out = temp_file("interrupted.h5");
+  std::atomic<bool> stop{false};
+  RunControl control;
+  control.stop = &stop;
+  control.progress = [&](long done, long) {
+    if (done == 10) stop = true;
+  };
+  const RunOutcome r = run_config(cfg, out, control);
+  EXPECT_EQ(r.status, RunStatus::Incomplete);
+  EXPECT_EQ(r.steps_completed, 10);
+  const RunFileData d = read_run_file(out);
+  EXPECT_EQ(d.status(), "incomplete");
+  EXPECT_EQ(d.series.at("time").size(), 11u);
+}
+
+TEST(Runner, RefusedConfigurationWritesNoFile) {
+  const fs::path out = temp_file("refused.h5");
+  fs::remove(out);
+  EXPECT_THROW(config::load_text(kFreeFall, "free_fall_test.toml", {{"scene.mass", "-1"}}),
+               config::ConfigError);
+  EXPECT_FALSE(fs::exists(out));
+}
+
+// Determinism: the same inputs give the same results, bit for bit, on the same build. Every
+// catalog scenario, every solver, a shuffled order included, shortened to a few steps.
+TEST(Runner, SameInputsGiveIdenticalSeries) {
+  for (const auto& info : config::list_scenarios()) {
+    for (const char* solver : {"pbd-seed", "pbd", "xpbd"}) {
+      std::vector<config::Override> o = {{"solver.name", solver},
+                                         {"solver.order", "shuffled"},
+                                         {"time.duration", "0.1"},
+                                         {"time.dt", "0.02"}};
+      const config::Config cfg = config::load(info.file.string(), o);
+      const fs::path a = temp_file("det_a.h5"), b = temp_file("det_b.h5");
+      run_config(cfg, a);
+      run_config(cfg, b);
+      const RunFileData da = read_run_file(a), db = read_run_file(b);
+      ASSERT_EQ(da.status(), db.status()) << info.name << " " << solver;
+      for (const SeriesSpec& s : series_table()) {
+        if (!s.deterministic) continue;
+        const std::string name(s.name);
+        // Bitwise: the same bits, so that NaN (an exploded run) equals itself.
+        if (s.width == 1) {
+          const auto& x = da.series.at(name);
+          const auto& y = db.series.at(name);
+          ASSERT_EQ(x.size(), y.size());
+          for (size_t k = 0; k < x.size(); ++k)
+            ASSERT_EQ(std::bit_cast<std::uint64_t>(x[k]), std::bit_cast<std::uint64_t>(y[k]))
+                << info.name << " " << solver << " " << name << "[" << k << "]: " << x[k] << " vs " << y[k];
+        } else {
+          const Points& x = da.series3.at(name);
+          const Points& y = db.series3.at(name);
+          ASSERT_EQ(x.size(), y.size());
+          ASSERT_EQ(std::memcmp(x.data(), y.data(), sizeof(double) * static_cast<size_t>(x.size())), 0)
+              << info.name << " " << solver << " " << name;
+        }
+      }
+    }
+  }
+}
