@@ -38,6 +38,7 @@ std::set<int> attached(const Model& m) {
 const std::map<std::string, int> kCatalogCounts = {
     {"balls_in_bowl", 125},    // 5 x 5 x 5
     {"cantilever_beam", 208},  // 13 x 4 x 4 vertices
+    {"cloth_on_character", 768},  // 24 x 32
     {"free_fall", 1},
     {"hanging_chain", 20},
     {"hanging_cloth", 4096},
