@@ -4,7 +4,8 @@ set(PBDBENCH_BUILD_INFO_CPP ${CMAKE_BINARY_DIR}/generated/build_info.cpp)
 string(TOUPPER "${CMAKE_BUILD_TYPE}" _bt)
 set(_flags "${CMAKE_CXX_FLAGS} ${CMAKE_CXX_FLAGS_${_bt}} -Wall -Wextra -ffp-contract=off")
 if(PBDBENCH_SANITIZE)
-  string(APPEND _flags " -fsanitize=${PBDBENCH_SANITIZE}")
+  list(JOIN PBDBENCH_SANITIZE "," _san_list)  # a ';' would split the custom command's arguments
+  string(APPEND _flags " -fsanitize=${_san_list}")
 endif()
 string(STRIP "${_flags}" _flags)
 add_custom_target(pbdbench_build_info_gen

@@ -5,81 +5,21 @@
 #include "core/generators.hpp"
 
 #include <cmath>
-#include <map>
 #include <random>
-#include <sstream>
 #include <stdexcept>
-#include <utility>
+#include <string>
 #include <vector>
 
-#include "core/constraint_functions.hpp"
+#include "core/build_helpers.hpp"
 #include "core/mesh_io.hpp"
 
 namespace pbdbench {
 
+using namespace core::detail;  // core/build_helpers.hpp
+
 namespace {
 
-// ---------------------------------------------------------------------------------------------
-// Spec validation. Messages read "<Spec>.<field> = <value> <what is wrong>".
-
-std::string format_double(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
-void require_min(const std::string& field, int value, int minimum) {
-  if (value < minimum)
-    throw std::invalid_argument(field + " = " + std::to_string(value) + " is below the minimum " +
-                                std::to_string(minimum));
-}
-
-void require_positive(const std::string& field, double value) {
-  if (!(value > 0.0) || !std::isfinite(value))
-    throw std::invalid_argument(field + " = " + format_double(value) +
-                                " must be finite and above 0");
-}
-
-void require_non_negative(const std::string& field, double value) {
-  if (!(value >= 0.0) || !std::isfinite(value))
-    throw std::invalid_argument(field + " = " + format_double(value) +
-                                " must be finite and at least 0");
-}
-
-void require_finite(const std::string& field, const Vec3& value) {
-  if (!value.allFinite())
-    throw std::invalid_argument(field + " = (" + format_double(value.x()) + ", " +
-                                format_double(value.y()) + ", " + format_double(value.z()) +
-                                ") is not finite");
-}
-
-void require_params(const std::string& field, const ConstraintParams& p) {
-  require_non_negative(field + ".compliance", p.compliance);
-  if (!(p.stiffness >= 0.0 && p.stiffness <= 1.0))
-    throw std::invalid_argument(field + ".stiffness = " + format_double(p.stiffness) +
-                                " is outside [0, 1]");
-  require_non_negative(field + ".damping", p.damping);
-}
-
-// ---------------------------------------------------------------------------------------------
-// Building blocks.
-
-// Appends particles at `positions` (k x 3) with the given masses (kg, > 0) and radius (m);
-// returns the index of the first one.
-int append_particles(Model& model, const Points& positions, const std::vector<double>& masses,
-                     double radius) {
-  const int begin = model.particle_count();
-  const int k = static_cast<int>(positions.rows());
-  model.rest_positions.conservativeResize(begin + k, 3);
-  model.rest_positions.bottomRows(k) = positions;
-  for (int i = 0; i < k; ++i) {
-    model.inv_mass.push_back(1.0 / masses[static_cast<size_t>(i)]);
-    model.radius.push_back(radius);
-  }
-  return begin;
-}
-
+// Pins a particle where it is: inv_mass 0 and a static Attachment.
 void pin(Model& model, int particle) {
   model.inv_mass[static_cast<size_t>(particle)] = 0.0;
   Attachment a;
@@ -87,52 +27,6 @@ void pin(Model& model, int particle) {
   a.anchor = model.rest_positions.row(particle).transpose();
   a.motion = -1;
   model.attachments.push_back(a);
-}
-
-Constraint make_constraint(ConstraintKind kind, std::array<int, 4> particles, double rest,
-                           const ConstraintParams& p, std::uint16_t group) {
-  Constraint c;
-  c.kind = kind;
-  c.particles = particles;
-  c.rest = rest;
-  c.compliance = p.compliance;
-  c.stiffness = p.stiffness;
-  c.damping = p.damping;
-  c.group = group;
-  return c;
-}
-
-// A distance constraint between a and b, rest length from the model's rest positions.
-void add_distance(Model& model, int a, int b, const ConstraintParams& p, std::uint16_t group) {
-  const Vec3 xa = model.rest_positions.row(a), xb = model.rest_positions.row(b);
-  model.constraints.push_back(
-      make_constraint(ConstraintKind::Distance, {a, b, -1, -1}, (xb - xa).norm(), p, group));
-}
-
-// Dihedral bending constraints on every edge shared by exactly two of `triangles` (model
-// indices), in the order of the edges' sorted vertex pairs. x0, x1 is the edge as the first
-// triangle traverses it; x2 the first triangle's third vertex, x3 the second's.
-void add_dihedral_bending(Model& model, const std::vector<std::array<int, 3>>& triangles,
-                          const ConstraintParams& p, std::uint16_t group) {
-  struct Wing {
-    int from, to, opposite;
-  };
-  std::map<std::pair<int, int>, std::vector<Wing>> wings;
-  for (const auto& t : triangles) {
-    for (int e = 0; e < 3; ++e) {
-      const int a = t[static_cast<size_t>(e)], b = t[static_cast<size_t>((e + 1) % 3)];
-      const int c = t[static_cast<size_t>((e + 2) % 3)];
-      wings[{std::min(a, b), std::max(a, b)}].push_back({a, b, c});
-    }
-  }
-  for (const auto& [edge, w] : wings) {
-    if (w.size() != 2) continue;
-    const std::array<int, 4> q{w[0].from, w[0].to, w[0].opposite, w[1].opposite};
-    const Vec3 x0 = model.rest_positions.row(q[0]), x1 = model.rest_positions.row(q[1]);
-    const Vec3 x2 = model.rest_positions.row(q[2]), x3 = model.rest_positions.row(q[3]);
-    model.constraints.push_back(
-        make_constraint(ConstraintKind::Bending, q, dihedral_angle(x0, x1, x2, x3), p, group));
-  }
 }
 
 }  // namespace
@@ -156,7 +50,7 @@ ParticleRange add_chain(Model& model, const ChainSpec& spec) {
   // The direction must be a unit vector: a silently normalised one would hide a scenario typo.
   if (!(std::abs(spec.direction.norm() - 1.0) <= 1e-6))
     throw std::invalid_argument("ChainSpec.direction has norm " +
-                                format_double(spec.direction.norm()) +
+                                format_number(spec.direction.norm(), kExactDigits) +
                                 ", must be a unit vector (|norm - 1| <= 1e-6)");
   require_positive("ChainSpec.mass", spec.mass);
   require_non_negative("ChainSpec.end_mass", spec.end_mass);
@@ -346,9 +240,10 @@ ParticleRange add_packed_spheres(Model& model, const PackedSpheresSpec& spec) {
   const double spacing = 2.0 * spec.radius * (1.0 + spec.gap);
   // Two neighbours along an axis come closest when each moves `jitter` towards the other.
   if (!(spacing > 2.0 * spec.radius + 2.0 * spec.jitter))
-    throw std::invalid_argument("PackedSpheresSpec.jitter = " + format_double(spec.jitter) +
+    throw std::invalid_argument("PackedSpheresSpec.jitter = " +
+                                format_number(spec.jitter, kExactDigits) +
                                 " must be below radius * gap = " +
-                                format_double(spec.radius * spec.gap) +
+                                format_number(spec.radius * spec.gap, kExactDigits) +
                                 " so that the spheres cannot overlap");
 
   const int nx = spec.count[0], ny = spec.count[1], nz = spec.count[2];

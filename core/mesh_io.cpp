@@ -9,16 +9,18 @@
 #include <fstream>
 #include <map>
 #include <numeric>
-#include <sstream>
 #include <stdexcept>
 #include <string_view>
 #include <tuple>
 #include <unordered_map>
 #include <utility>
 
+#include "core/build_helpers.hpp"
 #include "core/constraint_functions.hpp"
 
 namespace pbdbench {
+
+using namespace core::detail;  // core/build_helpers.hpp
 
 namespace {
 
@@ -515,29 +517,6 @@ TetMesh read_tet_mesh(const std::string& path) {
 
 namespace {
 
-std::string format_double(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
-
-void require_positive(const std::string& field, double value) {
-  if (!(value > 0.0) || !std::isfinite(value))
-    throw std::invalid_argument(field + " = " + format_double(value) + " must be finite and above 0");
-}
-
-void require_params(const std::string& field, const ConstraintParams& p) {
-  if (!(p.compliance >= 0.0) || !std::isfinite(p.compliance))
-    throw std::invalid_argument(field + ".compliance = " + format_double(p.compliance) +
-                                " must be finite and at least 0");
-  if (!(p.stiffness >= 0.0 && p.stiffness <= 1.0))
-    throw std::invalid_argument(field + ".stiffness = " + format_double(p.stiffness) + " is outside [0, 1]");
-  if (!(p.damping >= 0.0) || !std::isfinite(p.damping))
-    throw std::invalid_argument(field + ".damping = " + format_double(p.damping) +
-                                " must be finite and at least 0");
-}
-
 double bounding_box_diagonal(const Points& x) {
   if (x.rows() == 0) return 0.0;
   return (x.colwise().maxCoeff() - x.colwise().minCoeff()).norm();
@@ -553,8 +532,8 @@ void check_duplicate_vertices(const Points& x, const std::string& file) {
     if (key(order[k - 1]) == key(order[k])) {
       const int a = order[k - 1], b = order[k];
       throw MeshError(file, 0, "vertices " + std::to_string(a) + " and " + std::to_string(b) +
-                                   " have identical coordinates (" + format_double(x(a, 0)) + ", " +
-                                   format_double(x(a, 1)) + ", " + format_double(x(a, 2)) + ")");
+                                   " have identical coordinates " +
+                                   format_vec3(x.row(a).transpose(), kShortDigits));
     }
   }
 }
@@ -573,42 +552,6 @@ void check_indices(const std::vector<std::array<int, K>>& elements, int n, const
       if (v < 0 || v >= n)
         throw MeshError(file, 0, std::string(name) + " " + std::to_string(e) + ": vertex index " +
                                      std::to_string(v) + " is out of range [0, " + std::to_string(n) + ")");
-}
-
-template <size_t K>
-std::string vertex_list(const std::array<int, K>& e) {
-  std::string s;
-  for (size_t k = 0; k < K; ++k) {
-    if (k > 0) s += ' ';
-    s += std::to_string(e[k]);
-  }
-  return s;
-}
-
-// Appends n particles at x with equal or given masses and returns the first index.
-int append_particles(Model& model, const Points& x, const std::vector<double>& masses, double radius) {
-  const int begin = model.particle_count();
-  const int k = static_cast<int>(x.rows());
-  model.rest_positions.conservativeResize(begin + k, 3);
-  model.rest_positions.bottomRows(k) = x;
-  for (int i = 0; i < k; ++i) {
-    model.inv_mass.push_back(1.0 / masses[static_cast<size_t>(i)]);
-    model.radius.push_back(radius);
-  }
-  return begin;
-}
-
-Constraint make_constraint(ConstraintKind kind, std::array<int, 4> particles, double rest,
-                           const ConstraintParams& p, std::uint16_t group) {
-  Constraint c;
-  c.kind = kind;
-  c.particles = particles;
-  c.rest = rest;
-  c.compliance = p.compliance;
-  c.stiffness = p.stiffness;
-  c.damping = p.damping;
-  c.group = group;
-  return c;
 }
 
 // The unique undirected edges of a set of elements, each (min, max), sorted.
@@ -632,10 +575,10 @@ void merge_closed(Model& model, bool had_triangles, bool closed) {
 
 ParticleRange add_surface_mesh(Model& model, const SurfaceMesh& mesh, const SurfaceBodySpec& spec,
                                const std::string& file) {
-  require_positive("SurfaceBodySpec.mass", spec.mass);
-  require_positive("SurfaceBodySpec.radius", spec.radius);
-  require_params("SurfaceBodySpec.stretch", spec.stretch);
-  require_params("SurfaceBodySpec.bending_params", spec.bending_params);
+  require_positive("SurfaceBodySpec.mass", spec.mass, kShortDigits);
+  require_positive("SurfaceBodySpec.radius", spec.radius, kShortDigits);
+  require_params("SurfaceBodySpec.stretch", spec.stretch, kShortDigits);
+  require_params("SurfaceBodySpec.bending_params", spec.bending_params, kShortDigits);
   const int n = static_cast<int>(mesh.vertices.rows());
   if (n < 3) throw MeshError(file, 0, "a surface needs at least 3 vertices, found " + std::to_string(n));
   if (mesh.triangles.empty()) throw MeshError(file, 0, "no triangles");
@@ -649,8 +592,8 @@ ParticleRange add_surface_mesh(Model& model, const SurfaceMesh& mesh, const Surf
     const Vec3 a = mesh.vertices.row(tri[0]), b = mesh.vertices.row(tri[1]), c = mesh.vertices.row(tri[2]);
     const double area = 0.5 * (b - a).cross(c - a).norm();
     if (area <= 1e-12 * diag * diag)
-      throw MeshError(file, 0, "triangle " + std::to_string(t) + " (vertices " + vertex_list(tri) +
-                                   ") has zero area (" + format_double(area) + " m^2)");
+      throw MeshError(file, 0, "triangle " + std::to_string(t) + " (vertices " + index_list(tri, 3) +
+                                   ") has zero area (" + format_number(area, kShortDigits) + " m^2)");
   }
 
   // Closed: every undirected edge in exactly two triangles, traversed once in each direction.
@@ -683,36 +626,20 @@ ParticleRange add_surface_mesh(Model& model, const SurfaceMesh& mesh, const Surf
   const std::uint16_t stretch = model.group_index("stretch");
   for (const auto& e : unique_edges(triangles)) {
     model.edges.push_back(e);
-    const Vec3 a = model.rest_positions.row(e[0]), b = model.rest_positions.row(e[1]);
-    model.constraints.push_back(make_constraint(ConstraintKind::Distance, {e[0], e[1], -1, -1}, (b - a).norm(),
-                                                spec.stretch, stretch));
+    add_distance(model, e[0], e[1], spec.stretch, stretch);
   }
   if (spec.bending) {
-    // One dihedral constraint per edge shared by exactly two triangles: x0, x1 the edge as the
-    // first triangle traverses it, x2 that triangle's third vertex, x3 the other's.
-    const std::uint16_t bending = model.group_index("bending");
-    std::map<std::pair<int, int>, std::vector<std::array<int, 3>>> wings;
-    for (const auto& tri : triangles)
-      for (size_t e = 0; e < 3; ++e) {
-        const int a = tri[e], b = tri[(e + 1) % 3], c = tri[(e + 2) % 3];
-        wings[{std::min(a, b), std::max(a, b)}].push_back({a, b, c});
-      }
-    for (const auto& [edge, w] : wings) {
-      if (w.size() != 2) continue;
-      const std::array<int, 4> q{w[0][0], w[0][1], w[0][2], w[1][2]};
-      const double rest = dihedral_angle(model.rest_positions.row(q[0]), model.rest_positions.row(q[1]),
-                                         model.rest_positions.row(q[2]), model.rest_positions.row(q[3]));
-      model.constraints.push_back(make_constraint(ConstraintKind::Bending, q, rest, spec.bending_params, bending));
-    }
+    // One dihedral constraint per edge shared by exactly two triangles.
+    add_dihedral_bending(model, triangles, spec.bending_params, model.group_index("bending"));
   }
   return {begin, begin + n};
 }
 
 ParticleRange add_tet_mesh(Model& model, const TetMesh& mesh, const TetBodySpec& spec, const std::string& file) {
-  require_positive("TetBodySpec.density", spec.density);
-  require_positive("TetBodySpec.radius", spec.radius);
-  require_params("TetBodySpec.edge", spec.edge);
-  require_params("TetBodySpec.volume", spec.volume);
+  require_positive("TetBodySpec.density", spec.density, kShortDigits);
+  require_positive("TetBodySpec.radius", spec.radius, kShortDigits);
+  require_params("TetBodySpec.edge", spec.edge, kShortDigits);
+  require_params("TetBodySpec.volume", spec.volume, kShortDigits);
   const int n = static_cast<int>(mesh.vertices.rows());
   if (mesh.tets.empty()) throw MeshError(file, 0, "no tetrahedra");
   check_finite_vertices(mesh.vertices, file);
@@ -729,9 +656,9 @@ ParticleRange add_tet_mesh(Model& model, const TetMesh& mesh, const TetBodySpec&
     double v = tet_signed_volume(mesh.vertices.row(t[0]), mesh.vertices.row(t[1]), mesh.vertices.row(t[2]),
                                  mesh.vertices.row(t[3]));
     if (!(std::abs(v) >= min_volume))
-      throw MeshError(file, 0, "tet " + std::to_string(e) + " (vertices " + vertex_list(mesh.tets[e]) +
-                                   ") is degenerate: volume " + format_double(v) + " m^3 is below 1e-12 * diag^3 = " +
-                                   format_double(min_volume) + " m^3");
+      throw MeshError(file, 0, "tet " + std::to_string(e) + " (vertices " + index_list(mesh.tets[e], 4) +
+                                   ") is degenerate: volume " + format_number(v, kShortDigits) + " m^3 is below 1e-12 * diag^3 = " +
+                                   format_number(min_volume, kShortDigits) + " m^3");
     if (v < 0.0 && spec.reorient) {
       std::swap(t[2], t[3]);
       v = -v;
@@ -779,11 +706,7 @@ ParticleRange add_tet_mesh(Model& model, const TetMesh& mesh, const TetBodySpec&
   model.edges.insert(model.edges.end(), edges.begin(), edges.end());
   if (spec.edges) {
     const std::uint16_t group = model.group_index("edge");
-    for (const auto& e : edges) {
-      const Vec3 a = model.rest_positions.row(e[0]), b = model.rest_positions.row(e[1]);
-      model.constraints.push_back(make_constraint(ConstraintKind::Distance, {e[0], e[1], -1, -1}, (b - a).norm(),
-                                                  spec.edge, group));
-    }
+    for (const auto& e : edges) add_distance(model, e[0], e[1], spec.edge, group);
   }
   if (spec.volumes) {
     const std::uint16_t group = model.group_index("volume");

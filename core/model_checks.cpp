@@ -5,27 +5,18 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
+#include "core/build_helpers.hpp"
 #include "core/constraint_functions.hpp"
 
 namespace pbdbench {
 
+using namespace core::detail;  // core/build_helpers.hpp
+
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
-
-std::string vec(const Vec3& v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << "(" << v.x() << ", " << v.y() << ", " << v.z() << ")";
-  return s.str();
-}
+std::string num(double v) { return format_number(v, kShortDigits); }
+std::string vec(const Vec3& v) { return format_vec3(v, kShortDigits); }
 
 class Problems {
  public:
@@ -36,23 +27,13 @@ class Problems {
   std::vector<ModelProblem> list_;
 };
 
-template <size_t K>
-std::string particle_list(const std::array<int, K>& p, int count) {
-  std::string s;
-  for (int k = 0; k < count; ++k) {
-    if (k > 0) s += ' ';
-    s += std::to_string(p[static_cast<size_t>(k)]);
-  }
-  return s;
-}
-
 // Checks that the first `count` indices are in [0, n) and pairwise distinct; true when they are.
 template <size_t K>
 bool check_indices(Problems& out, const std::string& name, const std::array<int, K>& p, int count, int n) {
   for (int k = 0; k < count; ++k) {
     const int i = p[static_cast<size_t>(k)];
     if (i < 0 || i >= n) {
-      out.add(name + " (particles " + particle_list(p, count) + "): index " + std::to_string(i) +
+      out.add(name + " (particles " + index_list(p, count) + "): index " + std::to_string(i) +
               " is out of range [0, " + std::to_string(n) + ")");
       return false;
     }
@@ -60,7 +41,7 @@ bool check_indices(Problems& out, const std::string& name, const std::array<int,
   for (int a = 0; a < count; ++a)
     for (int b = a + 1; b < count; ++b)
       if (p[static_cast<size_t>(a)] == p[static_cast<size_t>(b)]) {
-        out.add(name + " (particles " + particle_list(p, count) + ") repeats particle " +
+        out.add(name + " (particles " + index_list(p, count) + ") repeats particle " +
                 std::to_string(p[static_cast<size_t>(a)]));
         return false;
       }
@@ -129,7 +110,7 @@ std::vector<ModelProblem> check_model(const Model& model) {
     const double l = max_edge(x);
     // Degenerate: area <= 1e-12 (max edge)^2, scale-free.
     if (!(area > 1e-12 * l * l))
-      out.add(name + " (particles " + particle_list(tri, 3) + ") is degenerate: area " + num(area));
+      out.add(name + " (particles " + index_list(tri, 3) + ") is degenerate: area " + num(area));
   }
   for (size_t t = 0; t < model.tets.size(); ++t) {
     const auto& tet = model.tets[t];
@@ -141,7 +122,7 @@ std::vector<ModelProblem> check_model(const Model& model) {
     const double l = max_edge(x);
     // Degenerate: |V| <= 1e-9 (max edge)^3, scale-free. (A regular tet has V = 0.118 l^3.)
     if (!(std::abs(v) > 1e-9 * l * l * l))
-      out.add(name + " (particles " + particle_list(tet, 4) + ") is degenerate: volume " + num(v));
+      out.add(name + " (particles " + index_list(tet, 4) + ") is degenerate: volume " + num(v));
   }
 
   // Constraints.

@@ -21,6 +21,8 @@
 // lambda_j += omega dlambda_j. With averaging the positions move by less than M^-1 grad C^T
 // dlambda while lambda takes the full omega dlambda, so at the fixed point h = 0 but g != 0: the
 // multipliers (forces) then overestimate the impulse that actually moved the particles.
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <vector>
@@ -29,7 +31,7 @@
 #include "solvers/kernels.hpp"
 #include "solvers/ordering.hpp"
 #include "solvers/step_common.hpp"
-#include "solvers/velocity_pass.hpp"
+#include "solvers/substep.hpp"
 
 namespace pbdbench {
 
@@ -42,7 +44,7 @@ class XpbdSolver final : public Solver {
         particles_(model.particle_count()),
         constraints_(model.constraint_count()),
         ordering_(model, options),
-        jacobi_(model.particle_count()) {}
+        work_(model.particle_count()) {}
 
   std::string name() const override { return "xpbd"; }
 
@@ -52,8 +54,6 @@ class XpbdSolver final : public Solver {
     const int substeps = options_.substeps;
     const double h = dt / substeps;
     report.substeps = substeps;
-    const int n = particles_;
-    const int m = constraints_;
     Points& x = state.x;
     Points& v = state.v;
     coefficients_.resize(model.constraints.size());
@@ -67,60 +67,22 @@ class XpbdSolver final : public Solver {
       const double t_end = state.time + (s + 1) * h;
       PhaseTimer timer;
       set_kinematic(model, x, v, t_end);
-      for (int i = 0; i < n; ++i)
-        if (model.inv_mass[static_cast<size_t>(i)] > 0.0)
-          v.row(i) += (h * model.gravity).transpose();
-      x_pred_ = x;
-      for (int i = 0; i < n; ++i)
-        if (model.inv_mass[static_cast<size_t>(i)] > 0.0) x_pred_.row(i) += h * v.row(i);
-      p_ = x_pred_;
-      v_before_ = v;
+      apply_gravity(model, h, v);
+      predict_positions(model, x, v, h, x_pred_);
+      work_.p = x_pred_;
+      work_.v_before = v;
       std::fill(lambda.begin(), lambda.end(), 0.0);
       timer.lap(report.time_predict);
 
-      contacts_ = find_contacts(model, x_pred_, t_end, options_.contact_margin);
-      ordering_.set_contacts(model, contacts_);
-      contact_lambda_.assign(contacts_.size(), 0.0);
-      contact_active_.assign(contacts_.size(), 0);
-      report.contacts += static_cast<int>(contacts_.size());
+      find_substep_contacts(model, t_end, options_.contact_margin, ordering_, work_, report);
       timer.lap(report.time_contacts);
 
-      for (int sweep = 0; sweep < options_.iterations; ++sweep) {
-        ordering_.sweep(state.step, s, sweep, sequence_);
-        if (ordering_.jacobi()) {
-          pending_.clear();
-          for (int j : sequence_) {
-            Stencil st;
-            if (project(model, j, m, t_end, x, lambda, st, report) != Projection::Applied) continue;
-            for (int i = 0; i < st.count; ++i)
-              jacobi_.add(st.particles[static_cast<size_t>(i)],
-                          st.correction.dx[static_cast<size_t>(i)]);
-            pending_.push_back({j, st.correction.dlambda});
-          }
-          jacobi_.apply(p_, options_.jacobi_relaxation, options_.jacobi_averaging);
-          for (const auto& [j, dl] : pending_)
-            multiplier(j, m, lambda) += options_.jacobi_relaxation * dl;
-        } else {
-          for (int j : sequence_) {
-            Stencil st;
-            if (project(model, j, m, t_end, x, lambda, st, report) != Projection::Applied) continue;
-            for (int i = 0; i < st.count; ++i)
-              p_.row(st.particles[static_cast<size_t>(i)]) +=
-                  st.correction.dx[static_cast<size_t>(i)].transpose();
-            multiplier(j, m, lambda) += st.correction.dlambda;
-          }
-        }
-        ++report.iterations;
-      }
-      for (char a : contact_active_) report.active_contacts += a;
+      run_sweeps(model, options_, ordering_, state.step, s, &lambda, work_, report,
+                 [&](int j, Stencil& st) { return project(model, j, t_end, x, lambda, st); });
       if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, lambda, report);
       timer.lap(report.time_project);
 
-      for (int i = 0; i < n; ++i) {
-        if (model.inv_mass[static_cast<size_t>(i)] > 0.0) v.row(i) = (p_.row(i) - x.row(i)) / h;
-        x.row(i) = p_.row(i);
-      }
-      velocity_pass(model, contacts_, contact_lambda_, x, v_before_, v, t_end, h);
+      finish_substep(model, t_end, h, work_, x, v);
       timer.lap(report.time_velocity);
     }
     state.time += dt;
@@ -129,75 +91,56 @@ class XpbdSolver final : public Solver {
   }
 
  private:
-  struct Stencil {
-    int count = 0;
-    std::array<int, 4> particles{-1, -1, -1, -1};
-    Correction correction;
-  };
-
-  double& multiplier(int j, int m, std::vector<double>& lambda) {
-    return j < m ? lambda[static_cast<size_t>(j)] : contact_lambda_[static_cast<size_t>(j - m)];
-  }
-
   // The update of item j (model constraint j < m, else contact j - m) at the current positions
-  // p_; x_n holds the positions at the start of the substep.
-  Projection project(const Model& model, int j, int m, double t_end, const Points& x_n,
-                     const std::vector<double>& lambda, Stencil& st, StepReport& report) {
-    Weights w{};
-    Projection result;
-    if (j < m) {
+  // work_.p; x_n holds the positions at the start of the substep.
+  Projection project(const Model& model, int j, double t_end, const Points& x_n,
+                     const std::vector<double>& lambda, Stencil& st) {
+    if (j < constraints_) {
       const Constraint& c = model.constraints[static_cast<size_t>(j)];
       const XpbdCoefficients& k = coefficients_[static_cast<size_t>(j)];
-      st.count = arity(c.kind);
+      const Weights w = constraint_stencil(model, c, st);
       std::array<Vec3, 4> displacement{};
-      for (int i = 0; i < st.count; ++i) {
-        const int p = c.particles[static_cast<size_t>(i)];
-        st.particles[static_cast<size_t>(i)] = p;
-        w[static_cast<size_t>(i)] = model.inv_mass[static_cast<size_t>(p)];
-        if (k.gamma != 0.0) displacement[static_cast<size_t>(i)] = p_.row(p) - x_n.row(p);
-      }
-      const ConstraintEval e = eval_constraint(c, p_);
-      result = xpbd_project(e, w, st.count, k, lambda[static_cast<size_t>(j)], displacement,
-                            st.correction);
-    } else {
-      const size_t kc = static_cast<size_t>(j - m);
-      const Contact& c = contacts_[kc];
-      st.count = c.kind == ContactKind::Particle ? 2 : 1;
-      st.particles = {c.a, c.b, -1, -1};
-      w[0] = model.inv_mass[static_cast<size_t>(c.a)];
-      if (st.count == 2) w[1] = model.inv_mass[static_cast<size_t>(c.b)];
-      const ConstraintEval e = eval_contact(model, c, p_, t_end);
-      if (e.valid && e.C < 0.0) contact_active_[kc] = 1;
-      result = xpbd_project_contact(e, w, st.count, contact_lambda_[kc], st.correction);
+      if (k.gamma != 0.0)
+        for (int i = 0; i < st.count; ++i) {
+          const int p = st.particles[static_cast<size_t>(i)];
+          displacement[static_cast<size_t>(i)] = work_.p.row(p) - x_n.row(p);
+        }
+      const ConstraintEval e = eval_constraint(c, work_.p);
+      return xpbd_project(e, w, st.count, k, lambda[static_cast<size_t>(j)], displacement,
+                          st.correction);
     }
-    if (result == Projection::Skipped) ++report.skipped;
-    return result;
+    const size_t kc = static_cast<size_t>(j - constraints_);
+    Weights w;
+    const ConstraintEval e = contact_stencil(model, kc, t_end, work_, st, w);
+    return xpbd_project_contact(e, w, st.count, work_.contact_lambda[kc], st.correction);
   }
 
-  // Macklin et al. 2016, eqs. 8 and 9, at the final positions p_ of the substep.
+  // Macklin et al. 2016, eqs. 8 and 9, at the final positions work_.p of the substep.
   void residuals(const Model& model, double t_end, const std::vector<double>& lambda,
                  StepReport& report) const {
+    const Points& p = work_.p;
     Points g = Points::Zero(particles_, 3);
     for (int i = 0; i < particles_; ++i) {
       const double w = model.inv_mass[static_cast<size_t>(i)];
-      if (w > 0.0) g.row(i) = (p_.row(i) - x_pred_.row(i)) / w;
+      if (w > 0.0) g.row(i) = (p.row(i) - x_pred_.row(i)) / w;
     }
     double h2 = 0.0;
     for (size_t j = 0; j < model.constraints.size(); ++j) {
       const Constraint& c = model.constraints[j];
-      const ConstraintEval e = eval_constraint(c, p_);
+      const ConstraintEval e = eval_constraint(c, p);
       for (int i = 0; i < arity(c.kind); ++i)
         g.row(c.particles[static_cast<size_t>(i)]) -=
             lambda[j] * e.grad[static_cast<size_t>(i)].transpose();
       const double hj = e.C + coefficients_[j].alpha_tilde * lambda[j];
       h2 += hj * hj;
     }
-    for (size_t k = 0; k < contacts_.size(); ++k) {
-      if (!(contact_lambda_[k] > 0.0)) continue;
-      const Contact& c = contacts_[k];
-      const ConstraintEval e = eval_contact(model, c, p_, t_end);
-      g.row(c.a) -= contact_lambda_[k] * e.grad[0].transpose();
-      if (c.kind == ContactKind::Particle) g.row(c.b) -= contact_lambda_[k] * e.grad[1].transpose();
+    for (size_t k = 0; k < work_.contacts.size(); ++k) {
+      const double lambda_k = work_.contact_lambda[k];
+      if (!(lambda_k > 0.0)) continue;
+      const Contact& c = work_.contacts[k];
+      const ConstraintEval e = eval_contact(model, c, p, t_end);
+      g.row(c.a) -= lambda_k * e.grad[0].transpose();
+      if (c.kind == ContactKind::Particle) g.row(c.b) -= lambda_k * e.grad[1].transpose();
       h2 += e.C * e.C;
     }
     double g2 = 0.0;
@@ -211,18 +154,11 @@ class XpbdSolver final : public Solver {
   int particles_;
   int constraints_;
   Ordering ordering_;
-  JacobiAccumulator jacobi_;
   std::vector<XpbdCoefficients> coefficients_;  // (m) for the current h
 
   // Scratch, kept between steps to avoid reallocation.
-  Points p_;                                     // (n x 3) m, the iterate x of Algorithm 1
-  Points x_pred_;                                // (n x 3) m, x~, the predicted positions
-  Points v_before_;                              // (n x 3) m/s, velocities before the solve
-  std::vector<Contact> contacts_;                // this substep's contacts
-  std::vector<double> contact_lambda_;           // (contacts) kg m, accumulated multipliers (>= 0)
-  std::vector<char> contact_active_;             // (contacts) C < 0 at some projection
-  std::vector<int> sequence_;                    // this sweep's visiting order
-  std::vector<std::pair<int, double>> pending_;  // Jacobi: (item, dlambda)
+  Points x_pred_;        // (n x 3) m, x~, the predicted positions
+  SubstepScratch work_;  // work_.p is the iterate x of Algorithm 1
 };
 
 }  // namespace

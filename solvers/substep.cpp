@@ -1,0 +1,49 @@
+#include "solvers/substep.hpp"
+
+#include "solvers/velocity_pass.hpp"
+
+namespace pbdbench {
+
+void apply_gravity(const Model& model, double h, Points& v) {
+  for (int i = 0; i < model.particle_count(); ++i)
+    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) v.row(i) += (h * model.gravity).transpose();
+}
+
+void predict_positions(const Model& model, const Points& x, const Points& v, double h, Points& p) {
+  p = x;
+  for (int i = 0; i < model.particle_count(); ++i)
+    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) p.row(i) += h * v.row(i);
+}
+
+void find_substep_contacts(const Model& model, double t_end, double margin, Ordering& ordering,
+                           SubstepScratch& work, StepReport& report) {
+  work.contacts = find_contacts(model, work.p, t_end, margin);
+  ordering.set_contacts(model, work.contacts);
+  work.contact_lambda.assign(work.contacts.size(), 0.0);
+  work.contact_active.assign(work.contacts.size(), 0);
+  report.contacts += static_cast<int>(work.contacts.size());
+}
+
+ConstraintEval contact_stencil(const Model& model, size_t k, double t_end, SubstepScratch& work,
+                               Stencil& st, Weights& w) {
+  const Contact& c = work.contacts[k];
+  st.count = c.kind == ContactKind::Particle ? 2 : 1;
+  st.particles = {c.a, c.b, -1, -1};
+  w = Weights{};
+  w[0] = model.inv_mass[static_cast<size_t>(c.a)];
+  if (st.count == 2) w[1] = model.inv_mass[static_cast<size_t>(c.b)];
+  const ConstraintEval e = eval_contact(model, c, work.p, t_end);
+  if (e.valid && e.C < 0.0) work.contact_active[k] = 1;
+  return e;
+}
+
+void finish_substep(const Model& model, double t_end, double h, SubstepScratch& work, Points& x,
+                    Points& v) {
+  for (int i = 0; i < model.particle_count(); ++i) {
+    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) v.row(i) = (work.p.row(i) - x.row(i)) / h;
+    x.row(i) = work.p.row(i);
+  }
+  velocity_pass(model, work.contacts, work.contact_lambda, x, work.v_before, v, t_end, h);
+}
+
+}  // namespace pbdbench
