@@ -34,18 +34,22 @@ const SceneKindInfo& kind_or_throw(const std::string& name) {
   throw ConfigError(Source{}, "scene.kind", message);
 }
 
-// A plain-text table: columns padded to their widest cell, the last column left ragged.
+// A plain-text table: columns padded to their widest cell (at most kMaxColumn characters: a
+// longer cell, such as a long description, overflows its column rather than widening it for
+// every row), the last column left ragged.
 std::string text_table(const std::vector<std::vector<std::string>>& rows) {
+  constexpr std::size_t kMaxColumn = 40;
   if (rows.empty()) return "";
   std::vector<std::size_t> width(rows[0].size(), 0);
   for (const auto& r : rows)
-    for (std::size_t i = 0; i + 1 < r.size(); ++i) width[i] = std::max(width[i], r[i].size());
+    for (std::size_t i = 0; i + 1 < r.size(); ++i)
+      width[i] = std::max(width[i], std::min(r[i].size(), kMaxColumn));
   std::string out;
   for (const auto& r : rows) {
     std::string line = " ";
     for (std::size_t i = 0; i < r.size(); ++i) {
       line += " " + r[i];
-      if (i + 1 < r.size()) line += std::string(width[i] - r[i].size() + 1, ' ');
+      if (i + 1 < r.size()) line += std::string(width[i] > r[i].size() ? width[i] - r[i].size() + 1 : 1, ' ');
     }
     while (!line.empty() && line.back() == ' ') line.pop_back();
     out += line + "\n";

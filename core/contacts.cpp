@@ -43,6 +43,14 @@ struct CellKey {
   auto operator<=>(const CellKey&) const = default;
 };
 
+// The grid cell of a coordinate, clamped to +-2^40 so that far-flung particles (an exploding run)
+// neither overflow the conversion nor the neighbour arithmetic. Clamping is monotonic, so two
+// particles within one cell of each other still land in the same or neighbouring cells.
+std::int64_t cell_index(double coordinate, double cell) {
+  constexpr double kLimit = 1099511627776.0;  // 2^40
+  return static_cast<std::int64_t>(std::clamp(std::floor(coordinate / cell), -kLimit, kLimit));
+}
+
 void find_particle_pairs(const Model& model, const Points& x, double margin,
                          std::vector<Contact>& out) {
   const int n = model.particle_count();
@@ -55,10 +63,7 @@ void find_particle_pairs(const Model& model, const Points& x, double margin,
   keyed.reserve(static_cast<size_t>(n));
   for (int p = 0; p < n; ++p) {
     if (!x.row(p).allFinite()) continue;
-    keyed.push_back({{static_cast<std::int64_t>(std::floor(x(p, 0) / cell)),
-                      static_cast<std::int64_t>(std::floor(x(p, 1) / cell)),
-                      static_cast<std::int64_t>(std::floor(x(p, 2) / cell))},
-                     p});
+    keyed.push_back({{cell_index(x(p, 0), cell), cell_index(x(p, 1), cell), cell_index(x(p, 2), cell)}, p});
   }
   std::sort(keyed.begin(), keyed.end());
   const auto excluded = constrained_pairs(model);

@@ -180,12 +180,22 @@ int cmd_list() {
   return kExitOk;
 }
 
-int cmd_describe(const std::string& what, const std::vector<std::string>& sets) {
-  for (const auto& k : config::scene_kinds()) {
-    if (k.name == what && sets.empty()) {
-      std::cout << config::describe_keys(what);
-      return kExitOk;
+// A scenario (file or catalog name) is described with its resolved values and their sources; a
+// scene kind (or any name with --kind) with its keys. Scenario names win: "spring" is both.
+int cmd_describe(const std::string& what, const std::vector<std::string>& sets, bool kind) {
+  bool is_kind = false;
+  for (const auto& k : config::scene_kinds()) is_kind = is_kind || k.name == what;
+  bool is_scenario = !kind;
+  if (is_scenario) {
+    try {
+      config::resolve_scenario(what);
+    } catch (const config::ConfigError&) {
+      is_scenario = false;
     }
+  }
+  if (!is_scenario && (is_kind || kind)) {
+    std::cout << config::describe_keys(what);
+    return kExitOk;
   }
   const config::Config cfg = config::load(what, parse_overrides(sets));
   std::cout << config::describe_config(cfg);
@@ -243,6 +253,8 @@ int main(int argc, char** argv) {
   auto* describe = app.add_subcommand("describe", "Describe a scenario's keys (types, defaults, units, docs) or a scene kind's");
   describe->add_option("what", scenario, "A scenario (file or name) or a scene kind")->required();
   describe->add_option("--set", sets, "Overrides to apply before describing (repeatable)");
+  bool kind = false;
+  describe->add_flag("--kind", kind, "Describe the scene kind of this name, not a scenario");
 
   auto* summary = app.add_subcommand("summary", "Print a table of what run files measured");
   summary->add_option("files", files, "Run files");
@@ -263,7 +275,7 @@ int main(int argc, char** argv) {
     if (*run) return cmd_run(scenario, solver, sets, out, quiet);
     if (*sweep) return cmd_sweep(file, out, jobs, force, shard, sets, quiet);
     if (app.got_subcommand("list")) return cmd_list();
-    if (*describe) return cmd_describe(scenario, sets);
+    if (*describe) return cmd_describe(scenario, sets, kind);
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*series) {
       if (markdown) {

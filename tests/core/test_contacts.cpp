@@ -315,6 +315,24 @@ TEST(Contacts, PairsJoinedByAConstraintAreExcluded) {
   EXPECT_TRUE(find_contacts(m, m.rest_positions, 0, 0).empty());
 }
 
+// An exploding run sends particles far away: the grid must neither overflow (undefined behaviour,
+// caught by the sanitizer build) nor lose pairs whose cells are beyond the grid's range.
+TEST(Contacts, FarFlungParticlesStillPairAndDoNotOverflowTheGrid) {
+  Model m;
+  m.rest_positions = Points::Zero(4, 3);
+  m.inv_mass = {1, 1, 1, 1};
+  m.radius = {0.05, 0.05, 0.05, 0.05};
+  m.particle_contact = true;
+  Points x(4, 3);
+  x << 1e13, 0, 0,         // 1e13 / 0.1 = 1e14 cells: beyond the grid's +-2^40, clamped
+       1e13 + 0.05, 0, 0,  // overlapping with particle 0 (distance 0.05 < 0.1)
+       -1e300, 1e300, -1e300,
+       0, 0, 0;
+  const auto found = find_contacts(m, x, 0, 0);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(std::make_pair(found[0].a, found[0].b), std::make_pair(0, 1));
+}
+
 TEST(Contacts, BowlIgnoresParticlesAboveItsCentre) {
   Model m;
   m.rest_positions.resize(3, 3);

@@ -186,6 +186,12 @@ class CliTest(unittest.TestCase):
         r = pbdbench("describe", "cloth")
         self.assertEqual(r.returncode, 0)
         self.assertIn("scene.bending_model", r.stdout)
+        # "spring" is both a scenario and a scene kind: the scenario wins, --kind asks for the kind.
+        r = pbdbench("describe", "spring")
+        self.assertIn("spring.toml:", r.stdout)
+        r = pbdbench("describe", "spring", "--kind")
+        self.assertIn("Scene kind 'spring'", r.stdout)
+        self.assertEqual(pbdbench("describe", "no_such_thing").returncode, 2)
         out = os.path.join(self.dir, "a.h5")
         self.assertEqual(pbdbench("run", "spring", "--out", out, "--quiet").returncode, 0)
         r = pbdbench("summary", out)
