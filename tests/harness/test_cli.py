@@ -22,6 +22,21 @@ def pbdbench(*args, cwd=None, timeout=300):
     return subprocess.run([BIN, *args], capture_output=True, text=True, cwd=cwd, timeout=timeout)
 
 
+def wait_for_rows(path, rows, timeout=60.0):
+    """Waits until the run file at `path` holds at least `rows` rows of series (the writer
+    publishes complete files by rename, so they can be read while the run goes on)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with h5py.File(path, "r") as f:
+                if f["series/time"].shape[0] >= rows:
+                    return
+        except (OSError, KeyError):
+            pass
+        time.sleep(0.05)
+    raise AssertionError(f"{path} did not reach {rows} rows in {timeout} s")
+
+
 def attr(f, name):
     value = f.attrs[name]
     return value.decode() if isinstance(value, bytes) else value
@@ -153,7 +168,7 @@ class CliTest(unittest.TestCase):
         out = os.path.join(self.dir, "killed.h5")
         p = subprocess.Popen([BIN, "run", "hanging_cloth", "--set", "time.duration=600", "--out", out, "--quiet"],
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        time.sleep(2.0)
+        wait_for_rows(out, 3)
         p.send_signal(signal.SIGKILL)
         p.wait()
         with h5py.File(out, "r") as f:
@@ -165,7 +180,7 @@ class CliTest(unittest.TestCase):
         out = os.path.join(self.dir, "interrupted.h5")
         p = subprocess.Popen([BIN, "run", "hanging_cloth", "--set", "time.duration=600", "--out", out, "--quiet"],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(1.5)
+        wait_for_rows(out, 2)  # the file exists once the run has started, signal handlers in place
         p.send_signal(signal.SIGINT)
         stdout, _ = p.communicate(timeout=60)
         self.assertEqual(p.returncode, 4, stdout)
