@@ -746,6 +746,11 @@ void set_solver_option(SolverOptions& o, const std::string& path, const Value& v
   else if (path == "solver.seed.reference_dt") o.seed_reference_dt = number();
   else if (path == "solver.seed.restitution") o.seed_restitution = number();
   else if (path == "solver.seed.fixes") o.seed_fixes = std::get<std::vector<std::string>>(value);
+  else if (path == "solver.ref.rtol") o.ref_rtol = number();
+  else if (path == "solver.ref.atol") o.ref_atol = number();
+  else if (path == "solver.ref.max_steps") o.ref_max_steps = static_cast<long>(whole());
+  else if (path == "solver.ref.max_newton") o.ref_max_newton = static_cast<int>(whole());
+  else if (path == "solver.ref.ignore_colliders") o.ref_ignore_colliders = flag();
   else throw std::invalid_argument("'" + path + "' is not a solver key");
 }
 

@@ -14,6 +14,7 @@
 #include "config/internal.hpp"
 #include "core/generators.hpp"
 #include "core/mesh_io.hpp"
+#include "solvers/solver.hpp"
 
 namespace pbdbench::config {
 
@@ -46,6 +47,7 @@ Range at_least(double v) { return {v, 1e308, false, false}; }
 Range above(double v) { return {v, 1e308, true, false}; }
 Range within(double lo, double hi) { return {lo, hi, false, false}; }
 Range above_upto(double lo, double hi) { return {lo, hi, true, false}; }
+Range within_open(double lo, double hi) { return {lo, hi, true, true}; }
 
 KeySpec make(std::string path, Type type, Value def, std::string units, Range r, std::string doc) {
   KeySpec k;
@@ -152,6 +154,13 @@ std::vector<KeySpec> motion_keys(const std::string& prefix, const std::string& w
 std::vector<std::string> kind_names() {
   std::vector<std::string> names;
   for (const SceneKindInfo& k : scene_kinds()) names.push_back(k.name);
+  return names;
+}
+
+// Every registered solver (solvers/registry.cpp), in the catalog's order.
+std::vector<std::string> solver_names() {
+  std::vector<std::string> names;
+  for (const SolverInfo& s : solver_catalog()) names.push_back(s.name);
   return names;
 }
 
@@ -382,9 +391,9 @@ const std::vector<KeySpec>& common_keys() {
         real("time.dt", run.dt, "s", above_upto(0, 1), "time step of one solver step"),
         real("time.duration", run.duration, "s", above_upto(0, 1e6),
              "simulated time; steps = round(duration / dt)"),
-        text("solver.name", so.name, {"pbd-seed", "pbd", "xpbd"},
+        text("solver.name", so.name, solver_names(),
              "solver: pbd-seed (the seed article's listing), pbd (Mueller et al. 2007), xpbd "
-             "(Macklin et al. 2016)"),
+             "(Macklin et al. 2016), or a reference integrator ref-* (`pbdbench list`)"),
         integer("solver.iterations", so.iterations, within(1, 100000),
                 "projection sweeps per substep"),
         integer("solver.substeps", so.substeps, within(1, 100000),
@@ -417,6 +426,17 @@ const std::vector<KeySpec>& common_keys() {
              "pbd-seed: restitution of the listing's collision response"),
         strings("solver.seed.fixes", so.seed_fixes, seed_departure_ids(),
                 "pbd-seed: ids of the departures from Mueller et al. 2007 to correct"),
+        real("solver.ref.rtol", so.ref_rtol, "1", within_open(0, 1),
+             "reference: relative tolerance of the adaptive integrators and of every Newton solve"),
+        real("solver.ref.atol", so.ref_atol, "m, m/s", above(0),
+             "reference: absolute tolerance of positions and velocities"),
+        integer("solver.ref.max_steps", so.ref_max_steps, within(1, 1000000000),
+                "reference: internal steps allowed to advance by one output step"),
+        integer("solver.ref.max_newton", so.ref_max_newton, within(1, 100000),
+                "reference: Newton iterations allowed per nonlinear solve"),
+        boolean("solver.ref.ignore_colliders", so.ref_ignore_colliders,
+                "reference: run a scene that has colliders without its contacts (the references "
+                "have none yet; the run file records this key)"),
         integer("output.frame_every", run.frame_every, within(1, 1000000000),
                 "write positions every k steps (and the last step)"),
         real("limits.max_speed", lim.max_speed, "m/s", above(0),

@@ -90,8 +90,13 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x) {
       return eval_volume(x.row(p[0]), x.row(p[1]), x.row(p[2]), x.row(p[3]), c.rest);
     case ConstraintKind::Bending:
       return eval_bending(x.row(p[0]), x.row(p[1]), x.row(p[2]), x.row(p[3]), c.rest);
+    case ConstraintKind::FemDeviatoric:
+    case ConstraintKind::FemHydrostatic:
+      break;  // needs the element: eval_constraint(model, c, x)
   }
-  return {};
+  ConstraintEval none;
+  none.valid = false;
+  return none;
 }
 
 double normalized_error(const Constraint& c, double C) {
@@ -100,6 +105,8 @@ double normalized_error(const Constraint& c, double C) {
     case ConstraintKind::Volume:
       return std::abs(c.rest) > 0.0 ? std::abs(C) / std::abs(c.rest) : std::abs(C);
     case ConstraintKind::Bending:
+    case ConstraintKind::FemDeviatoric:
+    case ConstraintKind::FemHydrostatic:
       return std::abs(C);
   }
   return std::abs(C);

@@ -11,6 +11,16 @@ const char* to_string(ConstraintKind kind) {
     case ConstraintKind::Distance: return "distance";
     case ConstraintKind::Volume: return "volume";
     case ConstraintKind::Bending: return "bending";
+    case ConstraintKind::FemDeviatoric: return "fem_deviatoric";
+    case ConstraintKind::FemHydrostatic: return "fem_hydrostatic";
+  }
+  return "unknown";
+}
+
+const char* to_string(Material material) {
+  switch (material) {
+    case Material::StableNeoHookean: return "stable_neo_hookean";
+    case Material::Corotated: return "corotated";
   }
   return "unknown";
 }

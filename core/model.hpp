@@ -31,9 +31,22 @@ enum class ConstraintKind : std::uint8_t {
              // n1 = unit((x1-x0) x (x2-x0)), n2 = unit((x1-x0) x (x3-x0));
              // x0,x1: the shared edge; x2,x3: the two wing vertices.
              // Mueller et al. 2007, sec. 4.2 and appendix A. A flat sheet has rest = pi.
+  FemDeviatoric,   // C = sqrt(tr(F^T F)) - rest, rest = 0                  (1)
+                   // F = Ds Dm^-1 of Model::elements[element]; compliance 1/(mu V)
+  FemHydrostatic,  // C = det F - rest, rest = 1 + mu / lambda_snh          (1)
+                   // compliance 1/(lambda_snh V). With the deviatoric one its energy
+                   // C^2/(2 alpha) is V times the stable neo-Hookean energy density of
+                   // core/fem.hpp up to a constant (Macklin and Mueller 2021). These two are
+                   // energy terms, not targets: their C is not zero at rest, and the constraint
+                   // error metrics leave them out.
 };
 
-inline constexpr int kConstraintKindCount = 3;
+inline constexpr int kConstraintKindCount = 5;
+
+// True for the kinds that stand for an FEM element's energy (FemDeviatoric, FemHydrostatic).
+constexpr bool is_fem_kind(ConstraintKind kind) {
+  return kind == ConstraintKind::FemDeviatoric || kind == ConstraintKind::FemHydrostatic;
+}
 
 // Number of particles a constraint of this kind acts on.
 constexpr int arity(ConstraintKind kind) {
@@ -41,11 +54,14 @@ constexpr int arity(ConstraintKind kind) {
     case ConstraintKind::Distance: return 2;
     case ConstraintKind::Volume: return 4;
     case ConstraintKind::Bending: return 4;
+    case ConstraintKind::FemDeviatoric: return 4;
+    case ConstraintKind::FemHydrostatic: return 4;
   }
   return 0;
 }
 
-const char* to_string(ConstraintKind kind);  // "distance", "volume", "bending"
+// "distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic"
+const char* to_string(ConstraintKind kind);
 
 struct Constraint {
   ConstraintKind kind = ConstraintKind::Distance;
@@ -57,6 +73,37 @@ struct Constraint {
   double damping = 0.0;     // beta >= 0, XPBD damping coefficient (Macklin 2016, eq. 26), in
                             // s / (units of alpha), N s/m for distance: gamma = alpha beta / h
   std::uint16_t group = 0;  // index into Model::group_names: "stretch", "shear", "bending", ...
+  int element = -1;         // FEM kinds: index into Model::elements; -1 otherwise
+};
+
+// ---------------------------------------------------------------------------------------------
+// Hyperelastic FEM elements (linear tetrahedra). Their energy densities are in core/fem.hpp.
+enum class Material : std::uint8_t {
+  StableNeoHookean,  // Psi = mu/2 (I_C - 3) + lambda_snh/2 (J - 1 - mu/lambda_snh)^2,
+                     // lambda_snh = lambda + mu so that small strains obey linear elasticity
+                     // (Smith et al. 2018 without the log term, as Macklin and Mueller 2021)
+  Corotated,         // fixed corotated: Psi = mu |F - R|^2 + lambda/2 (J - 1)^2, F = R S
+                     // (Stomakhin et al. 2012); its small-strain limit is linear elasticity
+};
+
+const char* to_string(Material material);  // "stable_neo_hookean", "corotated"
+
+struct FemElement {
+  std::array<int, 4> particles{-1, -1, -1, -1};
+  Mat3 rest_inverse = Mat3::Identity();  // Dm^-1, Dm = [X1-X0, X2-X0, X3-X0] at rest (1/m)
+  double rest_volume = 0.0;              // m^3, |det Dm| / 6 > 0
+  Material material = Material::StableNeoHookean;
+  double mu = 0.0;      // Pa, shear modulus E / (2 (1 + nu))
+  double lambda = 0.0;  // Pa, Lame's first parameter of linear elasticity E nu / ((1+nu)(1-2nu))
+};
+
+// What the scene measures besides the generic metrics (metrics/metrics.hpp); empty when the
+// scene kind has no such observable.
+struct Observables {
+  std::vector<int> tip;     // particles whose mean displacement is the tip displacement
+                            // (a beam's free end)
+  int bob = -1;             // the pendulum's bob, whose angle about `pivot` is logged
+  Vec3 pivot = Vec3::Zero();  // m
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -151,6 +198,12 @@ struct Model {
   bool particle_contact = false;        // contacts between particles not joined by a constraint
   double particle_restitution = 0.0;    // e for particle-particle contacts
   double particle_friction = 0.0;       // mu for particle-particle contacts
+
+  // FEM elements (their XPBD form, for the stable neo-Hookean material, is a pair of FEM-kind
+  // constraints per element in `constraints`).
+  std::vector<FemElement> elements;
+
+  Observables observables;
 
   int particle_count() const { return static_cast<int>(rest_positions.rows()); }
   int constraint_count() const { return static_cast<int>(constraints.size()); }

@@ -99,6 +99,25 @@ const std::array kSeries = {
                "when the solver does not define it)",
                1, true, PBDBENCH_REPORT(residual_h)},
 
+    // The reference integrators' account of the step (0, or NaN for the drift, for the PBD
+    // family).
+    SeriesSpec{"ref_steps", "1", "internal integrator steps taken to advance by the step", 1, true,
+               PBDBENCH_REPORT(ref_steps)},
+    SeriesSpec{"newton_iterations", "1", "nonlinear (Newton) iterations in the step", 1, true,
+               PBDBENCH_REPORT(newton_iterations)},
+    SeriesSpec{"linear_setups", "1", "Jacobian evaluations and factorisations in the step", 1,
+               true, PBDBENCH_REPORT(linear_setups)},
+    SeriesSpec{"linear_solves", "1", "linear solves with a factorisation in the step", 1, true,
+               PBDBENCH_REPORT(linear_solves)},
+    SeriesSpec{"error_test_failures", "1", "internal steps rejected by the local error test", 1,
+               true, PBDBENCH_REPORT(error_test_failures)},
+    SeriesSpec{"convergence_failures", "1", "nonlinear solves that did not converge", 1, true,
+               PBDBENCH_REPORT(convergence_failures)},
+    SeriesSpec{"constraint_drift", "mixed",
+               "max |C| of the rigid constraints at the end of the step, in their units (ref-dae; "
+               "NaN otherwise)",
+               1, true, PBDBENCH_REPORT(constraint_drift)},
+
     // Wall-clock timings: not deterministic.
     SeriesSpec{"time_predict", "s", "wall time in prediction, summed over substeps", 1, false,
                PBDBENCH_REPORT(time_predict)},
@@ -108,6 +127,9 @@ const std::array kSeries = {
                1, false, PBDBENCH_REPORT(time_project)},
     SeriesSpec{"time_velocity", "s", "wall time in the velocity update, summed over substeps", 1,
                false, PBDBENCH_REPORT(time_velocity)},
+    SeriesSpec{"time_linear", "s",
+               "wall time in Jacobian assembly, factorisation and linear solves (references)", 1,
+               false, PBDBENCH_REPORT(time_linear)},
     SeriesSpec{"wall_step", "s", "wall time of the whole step", 1, false,
                [](const SeriesRow& r, double* out) { out[0] = r.wall_step; }},
 };

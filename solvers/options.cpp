@@ -1,5 +1,7 @@
 #include "solvers/options.hpp"
 
+#include "solvers/solver.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -42,8 +44,15 @@ const std::vector<std::string>& seed_departure_ids() {
 }
 
 std::string SolverOptions::validate() const {
-  if (name != "pbd-seed" && name != "pbd" && name != "xpbd")
-    return "solver.name = '" + name + "' is not one of pbd-seed, pbd, xpbd";
+  {
+    std::string names;
+    bool known = false;
+    for (const SolverInfo& s : solver_catalog()) {
+      known = known || s.name == name;
+      names += (names.empty() ? "" : ", ") + s.name;
+    }
+    if (!known) return "solver.name = '" + name + "' is not one of " + names;
+  }
   if (iterations < 1) return out_of_range("solver.iterations", iterations, "below the minimum", 1);
   if (iterations > 100000)
     return out_of_range("solver.iterations", iterations, "above the maximum", 100000);
@@ -65,6 +74,16 @@ std::string SolverOptions::validate() const {
     return out_of_range("solver.seed.reference_dt", seed_reference_dt, "not above", 0.0);
   if (!(seed_restitution >= 0.0 && seed_restitution <= 1.0))
     return "solver.seed.restitution = " + std::to_string(seed_restitution) + " is outside [0, 1]";
+  if (!(ref_rtol > 0.0 && ref_rtol < 1.0))
+    return "solver.ref.rtol = " + std::to_string(ref_rtol) + " is outside (0, 1)";
+  if (!(ref_atol > 0.0) || !std::isfinite(ref_atol))
+    return out_of_range("solver.ref.atol", ref_atol, "not above", 0.0);
+  if (ref_max_steps < 1) return out_of_range("solver.ref.max_steps", ref_max_steps, "below the minimum", 1L);
+  if (ref_max_steps > 1000000000L)
+    return out_of_range("solver.ref.max_steps", ref_max_steps, "above the maximum", 1000000000L);
+  if (ref_max_newton < 1) return out_of_range("solver.ref.max_newton", ref_max_newton, "below the minimum", 1);
+  if (ref_max_newton > 100000)
+    return out_of_range("solver.ref.max_newton", ref_max_newton, "above the maximum", 100000);
   const auto& ids = seed_departure_ids();
   for (const std::string& f : seed_fixes)
     if (std::find(ids.begin(), ids.end(), f) == ids.end())

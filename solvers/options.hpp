@@ -57,6 +57,15 @@ struct SolverOptions {
   double seed_restitution = 0.2;       // solver.seed.restitution: in [0, 1], listing 3.4
   std::vector<std::string> seed_fixes; // solver.seed.fixes: ids of departures to correct (D1, ...)
 
+  // [solver.ref]: the reference integrators (reference/, docs/reference.md).
+  double ref_rtol = 1e-8;             // solver.ref.rtol: relative tolerance of the adaptive
+                                      // integrators (ref-bdf, ref-dae), and of every Newton solve
+  double ref_atol = 1e-10;            // solver.ref.atol: absolute tolerance, m and m/s
+  long ref_max_steps = 1000000;       // solver.ref.max_steps: internal steps per output step
+  int ref_max_newton = 50;            // solver.ref.max_newton: Newton iterations per solve
+  bool ref_ignore_colliders = false;  // solver.ref.ignore_colliders: run a scene that has
+                                      // colliders without its contacts (the references have none)
+
   // Returns an empty string when valid, else a message naming the field and the bound broken,
   // e.g. "solver.iterations = 0 is below the minimum 1".
   std::string validate() const;

@@ -1,13 +1,15 @@
 // The solver catalogue and the factory.
 #include <stdexcept>
 
+#include "reference/reference_solvers.hpp"
 #include "solvers/solver.hpp"
 #include "solvers/step_common.hpp"
 
 namespace pbdbench {
 
 const std::vector<SolverInfo>& solver_catalog() {
-  static const std::vector<SolverInfo> catalog = {
+  static const std::vector<SolverInfo> catalog = [] {
+    std::vector<SolverInfo> all = {
       {"pbd-seed",
        "the seed article's PBD listing to the letter (float, its departures D1-D11 switchable "
        "with solver.seed.fixes)"},
@@ -15,7 +17,10 @@ const std::vector<SolverInfo>& solver_catalog() {
       {"xpbd",
        "Extended Position Based Dynamics, Macklin et al. 2016, with substeps "
        "(Macklin et al. 2019)"},
-  };
+    };
+    for (const SolverInfo& r : reference_solver_catalog()) all.push_back(r);
+    return all;
+  }();
   return catalog;
 }
 
@@ -25,6 +30,7 @@ std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& m
   if (options.name == "pbd") return make_pbd_solver(options, model);
   if (options.name == "xpbd") return make_xpbd_solver(options, model);
   if (options.name == "pbd-seed") return make_pbd_seed_solver(options, model);
+  if (is_reference_solver(options.name)) return make_reference_solver(options, model);
   throw std::invalid_argument("solver.name = '" + options.name + "' is not a registered solver");
 }
 

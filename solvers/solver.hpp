@@ -28,11 +28,22 @@ struct StepReport {
   // NaN for solvers that do not define them.
   double residual_g = std::numeric_limits<double>::quiet_NaN();  // |M (x - x~) - grad C^T lambda|_2, kg m
   double residual_h = std::numeric_limits<double>::quiet_NaN();  // |C(x) + alpha~ lambda|_2, units of C
+  // Reference integrators (reference/): their own account of the step; 0 (NaN for the drift)
+  // for the PBD family.
+  long ref_steps = 0;             // internal integrator steps taken to advance by dt
+  long newton_iterations = 0;     // nonlinear (Newton) iterations
+  long linear_setups = 0;         // Jacobian evaluations and factorisations
+  long linear_solves = 0;         // linear solves with a factorisation
+  long error_test_failures = 0;   // steps rejected by the local error test
+  long convergence_failures = 0;  // nonlinear solves that failed to converge
+  double constraint_drift = std::numeric_limits<double>::quiet_NaN();  // max |C| of the rigid
+                                  // constraints at the end of the step (ref-dae), units of C
   // Wall-clock time per phase, summed over substeps, in seconds.
   double time_predict = 0.0;   // prediction (external forces), kinematic targets
   double time_contacts = 0.0;  // contact generation
   double time_project = 0.0;   // constraint projection sweeps
   double time_velocity = 0.0;  // velocity update, damping, friction and restitution
+  double time_linear = 0.0;    // reference integrators: Jacobian assembly, factorisation, solves
 };
 
 class Solver {
@@ -40,7 +51,7 @@ class Solver {
   virtual ~Solver() = default;
   // Advances `state` by dt seconds. Never changes the model. dt > 0.
   virtual StepReport step(const Model& model, State& state, double dt) = 0;
-  // The registered name: "pbd-seed", "pbd", "xpbd".
+  // The registered name: "pbd-seed", "pbd", "xpbd", "ref-bdf", ...
   virtual std::string name() const = 0;
 };
 

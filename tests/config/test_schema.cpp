@@ -204,9 +204,10 @@ TEST(Schema, SolverBoundsAgreeWithValidate) {
       }
     }
   }
-  // Both bounds of iterations, substeps, jacobi_relaxation, pbd.velocity_damping, seed.damping
-  // and seed.restitution; the minimum of contact_margin and seed.reference_dt.
-  EXPECT_EQ(bounds_checked, 14);
+  // Both bounds of iterations, substeps, jacobi_relaxation, pbd.velocity_damping, seed.damping,
+  // seed.restitution, ref.rtol, ref.max_steps and ref.max_newton; the minimum of contact_margin,
+  // seed.reference_dt and ref.atol.
+  EXPECT_EQ(bounds_checked, 21);
 }
 
 TEST(Schema, SetSolverOptionRefusesOtherPaths) {

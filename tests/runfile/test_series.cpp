@@ -71,7 +71,7 @@ TEST(runfile_series, RequiredSeriesInOrder) {
 
 TEST(runfile_series, ShapesUnitsDocsAndDeterminism) {
   const std::set<std::string> timings = {"time_predict", "time_contacts", "time_project",
-                                         "time_velocity", "wall_step"};
+                                         "time_velocity", "time_linear", "wall_step"};
   const std::set<std::string> vectors = {"linear_momentum", "angular_momentum"};
   for (const SeriesSpec& s : series_table()) {
     const std::string n(s.name);
@@ -126,6 +126,14 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   r.time_contacts = 29.5;
   r.time_project = 30.5;
   r.time_velocity = 31.5;
+  r.ref_steps = 35;
+  r.newton_iterations = 36;
+  r.linear_setups = 37;
+  r.linear_solves = 38;
+  r.error_test_failures = 39;
+  r.convergence_failures = 40;
+  r.constraint_drift = 41.5;
+  r.time_linear = 42.5;
   const SeriesRow row{32.5, 33, 34.5, &s, &r};
 
   const std::map<std::string, std::vector<double>> expected = {
@@ -138,7 +146,10 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"extent", {20.5}}, {"substeps", {21}}, {"iterations", {22}}, {"contacts", {23}},
       {"active_contacts", {24}}, {"skipped", {25}}, {"residual_g", {26.5}},
       {"residual_h", {27.5}}, {"time_predict", {28.5}}, {"time_contacts", {29.5}},
-      {"time_project", {30.5}}, {"time_velocity", {31.5}}, {"wall_step", {34.5}}};
+      {"time_project", {30.5}}, {"time_velocity", {31.5}}, {"wall_step", {34.5}},
+      {"ref_steps", {35}}, {"newton_iterations", {36}}, {"linear_setups", {37}},
+      {"linear_solves", {38}}, {"error_test_failures", {39}}, {"convergence_failures", {40}},
+      {"constraint_drift", {41.5}}, {"time_linear", {42.5}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";

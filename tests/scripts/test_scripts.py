@@ -90,7 +90,8 @@ class LoaderTest(unittest.TestCase):
         np.testing.assert_allclose(run.frame_time, [0.0, 0.1, 0.2, 0.3])
         self.assertEqual(run.frames.shape, (4, 4, 3))
         self.assertEqual(run.model["group_names"], ["stretch", "volume", "bending"])
-        self.assertEqual(run.model["constraint_kind_names"], ["distance", "volume", "bending"])
+        self.assertEqual(run.model["constraint_kind_names"],
+                         ["distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic"])
         self.assertEqual(run.model["rest_positions"].shape, (4, 3))
         self.assertEqual(list(run.model["constraint_kind"]), [0] * 6 + [1, 2])
         light = runfile.load(path, frames=False, model=False)

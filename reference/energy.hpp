@@ -1,0 +1,89 @@
+// A scene as an energy, over its dynamic degrees of freedom: what every reference integrator
+// integrates. Built once from a Model (the sparsity pattern of the Hessian is fixed then), then
+// evaluated at any positions.
+//
+//   U(x) = sum over compliant constraints (compliance > 0) of C(x)^2 / (2 alpha)
+//        + sum over FEM elements of V0 (Psi(F) - Psi(I))       (FEM-kind constraints are skipped:
+//                                                               their elements stand for them)
+//        - sum over dynamic particles of m g . x
+//   damping force f_d(x, v) = - sum over constraints of beta grad C (grad C . v)
+//
+// The degrees of freedom q are the coordinates of the dynamic particles (inv_mass > 0), three per
+// particle in particle order; kinematic and pinned particles sit on their targets at time t.
+// Rigid constraints (compliance 0) are not part of U: they are listed for ref-dae.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/model.hpp"
+
+namespace pbdbench {
+
+// A compressed sparse column pattern of a symmetric n x n matrix, stored whole (both triangles)
+// with every diagonal entry present, row indices sorted within each column.
+struct SparsityPattern {
+  int n = 0;
+  std::vector<std::int64_t> column_start;  // (n + 1)
+  std::vector<std::int64_t> row;           // (nnz)
+  std::int64_t nnz() const { return static_cast<std::int64_t>(row.size()); }
+  // Position of entry (r, c) in `row` (and in any values array of this pattern), or -1.
+  std::int64_t find(int r, int c) const;
+};
+
+class EnergyModel {
+ public:
+  // Keeps a pointer to `model`, which must outlive this object. Throws std::invalid_argument
+  // naming the constraint or element when the model has something U cannot express.
+  // (Mueller's bending constraint uses the unsigned angle: C^2 has a kink at a flat hinge unless
+  // its rest angle is pi, and at a fully folded one unless it is 0; there the gradient of C is
+  // undefined and the term contributes nothing.)
+  explicit EnergyModel(const Model& model);
+
+  int dofs() const { return static_cast<int>(dof_particle_.size()) * 3; }
+  const std::vector<int>& dynamic_particles() const { return dof_particle_; }  // (dofs/3)
+  const Eigen::VectorXd& mass() const { return mass_; }                      // (dofs), kg per dof
+  const std::vector<int>& rigid_constraints() const { return rigid_; }       // model indices
+
+  // All particle positions (n x 3) from q at time t: dynamic ones from q, the others on their
+  // attachment targets (or their rest positions when pinned without an attachment).
+  void positions(const Eigen::VectorXd& q, double t, Points& x) const;
+  // All particle velocities from u (the dofs' velocities) at time t (kinematic ones from their
+  // motions, pinned ones zero).
+  void velocities(const Eigen::VectorXd& u, double t, Points& v) const;
+  // q (and u) from all particle positions (velocities).
+  Eigen::VectorXd gather(const Points& all) const;
+
+  // U(x) (J), its gradient dU/dq (N) and Hessian d2U/dq2 (N/m) in hessian_pattern() order.
+  double energy(const Points& x) const;
+  void gradient(const Points& x, Eigen::VectorXd& g) const;
+  const SparsityPattern& hessian_pattern() const { return pattern_; }
+  void hessian(const Points& x, std::vector<double>& values, bool project_psd = false) const;
+
+  // Damping force f_d (N, per dof) and the matrix D = sum beta grad C grad C^T (N s/m, in
+  // hessian_pattern() order) with f_d = -D v. Zero when no constraint has damping.
+  bool has_damping() const { return has_damping_; }
+  void damping_force(const Points& x, const Points& v, Eigen::VectorXd& f) const;
+  void damping_matrix(const Points& x, std::vector<double>& values) const;
+
+  // Force multipliers of the compliant constraints, -C/alpha (N per unit of C), written into
+  // lambda (model.constraint_count()); rigid and FEM-kind entries are left untouched.
+  void constraint_forces(const Points& x, std::vector<double>& lambda) const;
+
+ private:
+  const Model* model_;
+  std::vector<int> dof_particle_;   // particle of dof block k
+  std::vector<int> particle_dof_;   // dof block of a particle, or -1
+  Eigen::VectorXd mass_;
+  std::vector<int> rigid_;
+  std::vector<int> compliant_;      // model constraints in U
+  bool has_damping_ = false;
+  SparsityPattern pattern_;
+  // For each term (compliant constraint, then FEM element) the pattern positions of its
+  // (arity*3)^2 block entries, -1 where a particle is not dynamic.
+  std::vector<std::vector<std::int64_t>> slots_;
+};
+
+}  // namespace pbdbench
