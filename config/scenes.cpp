@@ -12,6 +12,7 @@
 
 #include "config/config.hpp"
 #include "config/internal.hpp"
+#include "core/fem.hpp"
 #include "core/generators.hpp"
 #include "core/mesh_io.hpp"
 #include "core/model_checks.hpp"
@@ -244,7 +245,9 @@ class SceneBuilder {
     s.radius = real(m_, "scene.radius");
     s.pin_top = true;
     s.link = params(m_, "scene.");
-    add_chain(model_, s);
+    const ParticleRange r = add_chain(model_, s);
+    model_.observables.bob = r.begin + 1;
+    model_.observables.pivot = s.top;
   }
 
   void chain() {
@@ -317,17 +320,24 @@ class SceneBuilder {
     s.volumes = flag(m_, "scene.volumes");
     s.edge = params(m_, "scene.edge");
     s.volume = params(m_, "scene.volume");
+    const std::size_t first_tet = model_.tets.size();
     const ParticleRange r = add_tet_block(model_, s);
+    add_material(first_tet, "the tet_block scene");
 
+    // The fixed face is pinned; the particles of the opposite face are the tip (a beam's free
+    // end, Model::observables).
     std::vector<int> pins;
     const std::string& face = word(m_, "scene.fixed");
     if (face != "none") {
       const int axis = face[0] - 'x';
       const bool at_max = face.substr(2) == "max";
       const double target = s.origin[axis] + (at_max ? s.size[axis] : 0.0);
+      const double opposite = s.origin[axis] + (at_max ? 0.0 : s.size[axis]);
       const double tolerance = 1e-9 * s.size.maxCoeff();  // the generator's vertices are exact up to rounding
-      for (int p = r.begin; p < r.end; ++p)
+      for (int p = r.begin; p < r.end; ++p) {
         if (std::abs(model_.rest_positions(p, axis) - target) <= tolerance) pins.push_back(p);
+        if (std::abs(model_.rest_positions(p, axis) - opposite) <= tolerance) model_.observables.tip.push_back(p);
+      }
     }
     pin(pins);
     velocity_ = vec(m_, "scene.velocity");
@@ -380,6 +390,11 @@ class SceneBuilder {
     };
     ParticleRange r;
     if (format == "obj") {
+      if (word(m_, "scene.material") != "none")
+        refuse("scene.material",
+               fmt::format("scene.material = '{}' needs a tet mesh (.node/.ele or .msh); scene.file "
+                           "= '{}' is a surface mesh",
+                           word(m_, "scene.material"), name));
       SurfaceMesh mesh = read_obj(path.string());
       place(mesh.vertices);
       SurfaceBodySpec s;
@@ -400,12 +415,34 @@ class SceneBuilder {
       s.volumes = flag(m_, "scene.volumes");
       s.edge = params(m_, "scene.edge");
       s.volume = params(m_, "scene.volume");
+      const std::size_t first_tet = model_.tets.size();
       r = add_tet_mesh(model_, mesh, s, path.string());
+      add_material(first_tet, fmt::format("scene.file = '{}'", name),
+                   s.reorient ? "" : " (scene.reorient = false keeps negatively oriented tets as "
+                                     "they are; set it to true to flip them)");
     }
     std::vector<int> pins;
     for (int p : pin_indices(r.size())) pins.push_back(r.begin + p);
     pin(pins);
     velocity_ = vec(m_, "scene.velocity");
+  }
+
+  // scene.material: one FEM element per tet of the body just built (its tets are those from
+  // first_tet on), with scene.youngs_modulus and scene.poisson_ratio (core/fem.hpp). A tet the
+  // elements refuse (negatively oriented, degenerate) is refused naming scene.material.
+  void add_material(std::size_t first_tet, const std::string& subject, const std::string& hint = "") {
+    const std::string& name = word(m_, "scene.material");
+    if (name == "none") return;
+    const Material material = name == "corotated" ? Material::Corotated : Material::StableNeoHookean;
+    const std::vector<std::array<int, 4>> tets(model_.tets.begin() + static_cast<std::ptrdiff_t>(first_tet),
+                                               model_.tets.end());
+    try {
+      fem::add_fem_elements(model_, tets, material, real(m_, "scene.youngs_modulus"),
+                            real(m_, "scene.poisson_ratio"));
+    } catch (const std::invalid_argument& e) {
+      refuse("scene.material", fmt::format("scene.material = '{}' cannot be built on {}: {}{}", name,
+                                           subject, e.what(), hint));
+    }
   }
 
   void colliders() {

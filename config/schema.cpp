@@ -125,6 +125,20 @@ std::vector<KeySpec> group_keys(const std::string& prefix, const std::string& wh
   };
 }
 
+// The FEM material keys of a tet body (core/fem.hpp, fem::add_fem_elements).
+std::vector<KeySpec> fem_keys(const std::string& what) {
+  return {
+      text("scene.material", "none", {"none", "stable_neo_hookean", "corotated"},
+           what + ": a hyperelastic FEM element per tet (core/fem.hpp): stable_neo_hookean (xpbd "
+           "simulates it as two constraints per tet, Macklin and Mueller 2021), corotated (reference "
+           "solvers only), or none; pbd and pbd-seed refuse either; needs positively oriented tets"),
+      real("scene.youngs_modulus", 1e6, "Pa", above(0),
+           "Young's modulus E of the material (used when scene.material is not none)"),
+      real("scene.poisson_ratio", 0.3, "1", within(0, 0.499),
+           "Poisson's ratio nu of the material (used when scene.material is not none)"),
+  };
+}
+
 const std::vector<std::string> kMotionSuffixes = {"",       "_velocity",  "_amplitude", "_axis",
                                                   "_radius", "_frequency", "_start",     "_stop"};
 
@@ -290,10 +304,12 @@ SceneKindInfo tet_block_kind() {
       real("scene.radius", t.radius, "m", above(0), "radius of each particle (contacts only)"),
       integer("scene.tets_per_cell", t.tets_per_cell, within(5, 6),
               "tetrahedra per cell: 5 (alternating) or 6 (sharing the main diagonal)"),
-      text("scene.fixed", "none", kFaceChoices, "the face whose particles are pinned, or none"),
+      text("scene.fixed", "none", kFaceChoices,
+           "the face whose particles are pinned, or none; the opposite face is the observed tip"),
       boolean("scene.edges", t.edges, "add distance constraints on every tet edge"),
       boolean("scene.volumes", t.volumes, "add a volume constraint per tet"),
   };
+  append(keys, fem_keys("the block's material"));
   // Defaults: rubber-like for 0.1 m cells (Young's modulus of the order of 1e7 Pa).
   append(keys, group_keys("scene.edge", "edge constraints", "m/N", ConstraintParams{1e-6, 1.0, 0.0}));
   append(keys, group_keys("scene.volume", "volume constraints", "m^5/N",
@@ -301,7 +317,8 @@ SceneKindInfo tet_block_kind() {
   keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kAny,
                       "initial velocity of the free particles"));
   append(keys, motion_keys("scene.pin_motion", "the pinned face"));
-  return {"tet_block", "a box of tetrahedra with edge and volume constraints (a soft solid)",
+  return {"tet_block",
+          "a box of tetrahedra with edge and volume constraints and/or FEM elements (a soft solid)",
           std::move(keys)};
 }
 
@@ -350,6 +367,7 @@ SceneKindInfo mesh_kind() {
       boolean("scene.edges", t.edges, "tet meshes: add distance constraints on every tet edge"),
       boolean("scene.volumes", t.volumes, "tet meshes: add a volume constraint per tet"),
   };
+  append(keys, fem_keys("tet meshes"));
   append(keys, group_keys("scene.stretch", "stretch constraints of a surface mesh", "m/N",
                           ConstraintParams{1e-4, 1.0, 0.0}));
   append(keys, group_keys("scene.bending", "bending constraints of a surface mesh", "rad^2/J",

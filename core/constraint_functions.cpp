@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/fem.hpp"
+
 namespace pbdbench {
 
 ConstraintEval eval_distance(const Vec3& x0, const Vec3& x1, double rest) {
@@ -97,6 +99,20 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x) {
   ConstraintEval none;
   none.valid = false;
   return none;
+}
+
+ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Points& x) {
+  if (!is_fem_kind(c.kind)) return eval_constraint(c, x);
+  if (c.element < 0 || c.element >= static_cast<int>(model.elements.size())) {
+    ConstraintEval none;
+    none.valid = false;
+    return none;
+  }
+  const FemElement& e = model.elements[static_cast<size_t>(c.element)];
+  if (c.kind == ConstraintKind::FemHydrostatic) return fem::eval_hydrostatic(e, x, c.rest);
+  ConstraintEval ev = fem::eval_deviatoric(e, x);  // sqrt(tr F^T F), its rest is 0
+  ev.C -= c.rest;
+  return ev;
 }
 
 double normalized_error(const Constraint& c, double C) {

@@ -44,6 +44,13 @@ ConstraintEval eval_bending(const Vec3& x0, const Vec3& x1, const Vec3& x2, cons
 // Evaluate a model constraint on positions x (n x 3).
 ConstraintEval eval_constraint(const Constraint& c, const Points& x);
 
+// Evaluate any model constraint on positions x (n x 3): the FEM kinds through their element
+// model.elements[c.element] (fem::eval_deviatoric, fem::eval_hydrostatic in core/fem.hpp; C is
+// the measured value minus c.rest), the others as the overload above. valid = false, C = 0 when a
+// FEM-kind constraint's element index is out of range. (The overload above, without the model,
+// reports the FEM kinds as C = 0, valid = false.)
+ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Points& x);
+
 // The error of a constraint as the metrics report it: |C| / |rest| for distance and volume when
 // rest != 0 (relative, dimensionless), |C| otherwise (absolute: m or m^3); |C| in radians for
 // bending.

@@ -13,8 +13,12 @@ struct State {
   long step = 0;               // number of steps taken
   Points x;                    // (n x 3) m, positions
   Points v;                    // (n x 3) m/s, velocities
-  std::vector<double> lambda;  // (m) Lagrange multipliers of the model's constraints from the
-                               // last step (XPBD's accumulated lambda); 0 for solvers without
+  std::vector<double> lambda;  // (m) constraint forces per unit of C from the last step (N for a
+                               // distance constraint): the force of constraint j on particle i is
+                               // grad_i C_j lambda_j. xpbd: the last substep's accumulated
+                               // multiplier / h^2 (h = dt / substeps, Macklin et al. 2016); the
+                               // references: reference/reference_solvers.hpp; NaN for solvers
+                               // without multipliers (pbd, pbd-seed). 0 in rest_state().
 };
 
 // A state at rest in the model's reference configuration at t = 0.

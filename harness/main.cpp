@@ -6,20 +6,27 @@
 //   2  bad input (usage, scenario or sweep file, --set override)
 //   3  run exploded (run only: the file records where)
 //   4  run interrupted (SIGINT/SIGTERM: the file is marked incomplete)
+// compare: 0 done, 1 a file could not be read or written or the plot failed, 2 bad input (runs
+// of different scenes, a bad --until).
 #include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <thread>
 
 #include <fmt/format.h>
 
 #include "config/config.hpp"
+#include "harness/compare.hpp"
 #include "harness/runner.hpp"
 #include "harness/summary.hpp"
 #include "harness/sweep.hpp"
@@ -219,6 +226,55 @@ int cmd_summary(const std::vector<std::string>& files, const std::string& index_
   return kExitOk;
 }
 
+// Runs /usr/bin/python3 SCRIPT ARGS... and returns its exit status (-1 when it could not start).
+int run_python(const fs::path& script, const std::vector<std::string>& args) {
+  std::vector<std::string> argv_s = {"/usr/bin/python3", script.string()};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv_c;
+  for (std::string& a : argv_s) argv_c.push_back(a.data());
+  argv_c.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, argv_c[0], nullptr, nullptr, argv_c.data(), environ) != 0) return -1;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return -1;
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// The compare file goes to --out; with --plot alone, to a temporary file removed after plotting.
+int cmd_compare(const std::string& run_file, const std::string& reference_file,
+                const std::string& out_arg, const std::string& plot, double until) {
+  const CompareRun run = read_compare_run(run_file);
+  const CompareRun reference = read_compare_run(reference_file);
+  CompareOptions options;
+  options.until = until;
+  const CompareResult result = compare_runs(run, reference, options);
+  for (const std::string& w : result.warnings) std::cerr << "pbdbench: warning: " << w << "\n";
+  std::cout << compare_summary(result);
+  fs::path out = out_arg;
+  const bool temporary = out.empty() && !plot.empty();
+  if (temporary)
+    out = fs::temp_directory_path() / fmt::format("pbdbench-compare-{}.h5", static_cast<long>(getpid()));
+  if (!out.empty()) {
+    write_compare_file(out, result);
+    if (!temporary) std::cout << "-> " << out.string() << "\n";
+  }
+  if (plot.empty()) return kExitOk;
+  const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_compare.py";
+  std::cout.flush();  // before the script's own output
+  const int rc = run_python(script, {out.string(), "-o", plot});
+  if (temporary) {
+    std::error_code ec;
+    fs::remove(out, ec);
+  }
+  if (rc != 0) {
+    std::cerr << "pbdbench: " << script.string() << " failed (exit " << rc << "): no plot\n";
+    return kExitFailure;
+  }
+  return kExitOk;  // the script said where it wrote the plot
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -261,6 +317,16 @@ int main(int argc, char** argv) {
   summary->add_option("--dir", index_dir, "Every run file of a sweep directory");
   summary->add_flag("--csv", csv, "Comma-separated values");
 
+  std::string reference, plot;
+  double until = std::numeric_limits<double>::infinity();
+  auto* compare = app.add_subcommand(
+      "compare", "The gap between two runs of the same scene over time: positions, series, observables");
+  compare->add_option("run", file, "The run file to measure")->required();
+  compare->add_option("reference", reference, "The run file to measure it against")->required();
+  compare->add_option("--out", out, "Compare file (HDF5) to write");
+  compare->add_option("--plot", plot, "Plot to draw with scripts/plot_compare.py (PNG)");
+  compare->add_option("--until", until, "Compare only up to this time, s (default: the shorter run's end)");
+
   auto* series = app.add_subcommand("series", "Print the logged series (name, shape, units, doc)");
   series->add_flag("--markdown", markdown, "As the Markdown table of results/README.md");
 
@@ -277,6 +343,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("list")) return cmd_list();
     if (*describe) return cmd_describe(scenario, sets, kind);
     if (*summary) return cmd_summary(files, index_dir, csv);
+    if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*series) {
       if (markdown) {
         std::cout << series_markdown();
@@ -289,6 +356,9 @@ int main(int argc, char** argv) {
       return kExitOk;
     }
   } catch (const config::ConfigError& e) {
+    std::cerr << "pbdbench: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const CompareInputError& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const std::exception& e) {

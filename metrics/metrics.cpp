@@ -4,9 +4,11 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <vector>
 
 #include "core/constraint_functions.hpp"
 #include "core/contacts.hpp"
+#include "core/fem.hpp"
 
 namespace pbdbench {
 
@@ -38,6 +40,21 @@ double max_distance_from_centroid(const Points& x) {
   return d;
 }
 
+// The number of constraints the error metrics measure (the FEM kinds are not measured); a group
+// of FEM kinds only gets max = rms = NaN.
+size_t measured_constraints(const Model& model, std::vector<GroupError>& groups) {
+  size_t measured = 0;
+  for (const Constraint& c : model.constraints) {
+    if (!is_fem_kind(c.kind)) {
+      ++measured;
+    } else if (groups[c.group].count == 0) {
+      groups[c.group].max = kNaN;
+      groups[c.group].rms = kNaN;
+    }
+  }
+  return measured;
+}
+
 double relative_drift(double now, double start) {
   return start != 0.0 ? (now - start) / std::abs(start) : kNaN;
 }
@@ -58,10 +75,12 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   const Points& v = state.v;
   const int n = model.particle_count();
 
-  // Constraint error, overall and per group.
+  // Constraint error, overall and per group. The FEM kinds are left out: they are energy terms
+  // (their C is not 0 at rest), not targets.
   s.groups.assign(model.group_names.size(), GroupError{});
   double sum_sq = 0.0;
   for (const Constraint& c : model.constraints) {
+    if (is_fem_kind(c.kind)) continue;
     const double err = normalized_error(c, eval_constraint(c, x).C);
     GroupError& g = s.groups[c.group];
     g.max = std::max(g.max, err);
@@ -75,7 +94,8 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     }
   }
   for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
-  s.constraint_error_rms = model.constraints.empty() ? 0.0 : std::sqrt(sum_sq / model.constraints.size());
+  const size_t measured = measured_constraints(model, s.groups);
+  s.constraint_error_rms = measured == 0 ? 0.0 : std::sqrt(sum_sq / measured);
 
   // Volume.
   if (model.tets.empty()) {
@@ -105,11 +125,14 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     s.angular_momentum += m * xi.cross(vi);
   }
   for (const Constraint& c : model.constraints) {
-    if (c.compliance > 0.0) {
+    // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it below
+    // (adding both would count each element twice).
+    if (c.compliance > 0.0 && !is_fem_kind(c.kind)) {
       const double C = eval_constraint(c, x).C;
       s.elastic_energy += C * C / (2.0 * c.compliance);
     }
   }
+  for (const FemElement& e : model.elements) s.elastic_energy += fem::element_energy(e, x);
   s.total_energy = s.kinetic_energy + s.potential_energy + s.elastic_energy;
 
   // Explosion indicators.
@@ -136,7 +159,61 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   } else {
     s.penetration_max = kNaN;
   }
+
+  // Observables of the scene.
+  s.tip_displacement = tip_displacement(model, state);
+  s.support_force = support_force(model, state);
+  s.pendulum_angle = pendulum_angle(model, state);
   return s;
+}
+
+Vec3 tip_displacement(const Model& model, const State& state) {
+  const std::vector<int>& tip = model.observables.tip;
+  if (tip.empty()) return Vec3::Constant(kNaN);
+  Vec3 sum = Vec3::Zero();
+  for (int i : tip) sum += (state.x.row(i) - model.rest_positions.row(i)).transpose();
+  return sum / static_cast<double>(tip.size());
+}
+
+Vec3 support_force(const Model& model, const State& state) {
+  const Vec3 nan = Vec3::Constant(kNaN);
+  auto support = [&](int i) { return model.inv_mass[static_cast<size_t>(i)] == 0.0; };
+  for (const FemElement& e : model.elements)
+    for (int i : e.particles)
+      if (support(i)) return nan;  // its forces are not in lambda
+  if (state.lambda.size() != model.constraints.size()) return nan;
+  bool any_support = false;
+  for (int i = 0; i < model.particle_count(); ++i) any_support = any_support || support(i);
+  if (!any_support) return Vec3::Zero();
+  if (state.step == 0) return nan;  // no step has computed the multipliers yet
+  Vec3 on_supports = Vec3::Zero();  // sum of the constraint forces on the supports
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
+    const Constraint& c = model.constraints[j];
+    bool touches = false;
+    for (int k = 0; k < arity(c.kind); ++k) touches = touches || support(c.particles[static_cast<size_t>(k)]);
+    if (!touches) continue;
+    const double lambda = state.lambda[j];
+    if (std::isnan(lambda)) return nan;
+    if (lambda == 0.0) continue;
+    const ConstraintEval e = eval_constraint(c, state.x);
+    if (!e.valid) return nan;
+    for (int k = 0; k < arity(c.kind); ++k)
+      if (support(c.particles[static_cast<size_t>(k)])) on_supports += e.grad[static_cast<size_t>(k)] * lambda;
+  }
+  return -on_supports;
+}
+
+double pendulum_angle(const Model& model, const State& state) {
+  const int bob = model.observables.bob;
+  if (bob < 0 || bob >= model.particle_count()) return kNaN;
+  const double g = model.gravity.norm();
+  if (!(g > 0.0)) return kNaN;
+  const Vec3 down = model.gravity / g;
+  Vec3 across = Vec3::UnitX() - down.x() * down;  // +x without its component along gravity
+  if (across.norm() < 1e-12) return kNaN;          // gravity along x: no plane
+  across.normalize();
+  const Vec3 d = state.x.row(bob).transpose() - model.observables.pivot;
+  return std::atan2(d.dot(across), d.dot(down));
 }
 
 std::string explosion_reason(const Model& model, const State& state, const Sample& sample,

@@ -2,6 +2,7 @@
 // One `Sample` is one row of the run file's series (runfile/series.hpp declares the columns).
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -23,11 +24,15 @@ struct GroupError {
   double max = 0.0;  // max over the group's constraints of normalized_error (core/constraint_functions.hpp)
   double rms = 0.0;  // root mean square of the same
   int count = 0;     // constraints in the group
+  // A group of FEM-kind constraints only ("fem_deviatoric", "fem_hydrostatic") has count 0 and
+  // max = rms = NaN: those constraints are energy terms, not targets (core/model.hpp), so the
+  // run file's constraint_error_*_fem_* series are NaN throughout by design.
 };
 
 struct Sample {
   // Constraint error over the model's constraints, normalised per kind (relative to rest length
   // or volume; radians for bending), overall and per group (indexed like Model::group_names).
+  // The FEM kinds are left out (energy terms, not targets).
   double constraint_error_max = 0.0;
   double constraint_error_rms = 0.0;
   std::vector<GroupError> groups;
@@ -40,7 +45,9 @@ struct Sample {
   double surface_volume_drift = 0.0;  // 1
 
   // Energy of the dynamic particles (inv_mass > 0): kinetic 1/2 m v^2, gravitational -m g . x,
-  // elastic sum over compliant constraints (alpha > 0) of C^2 / (2 alpha); total = their sum.
+  // elastic sum over compliant constraints (alpha > 0) of C^2 / (2 alpha), the FEM kinds left
+  // out, plus sum over FEM elements of V0 (Psi(F) - Psi(I)) (fem::element_energy, which stands
+  // for the FEM-kind constraints too); total = their sum.
   double kinetic_energy = 0.0;    // J
   double potential_energy = 0.0;  // J
   double elastic_energy = 0.0;    // J
@@ -58,9 +65,37 @@ struct Sample {
   double max_speed = 0.0;  // m/s over all particles (NaN when a velocity is not finite)
   double extent = 0.0;     // m, max distance of a particle from the current centroid
   bool finite = true;      // every position and velocity finite
+
+  // Observables of the scene (Model::observables); NaN where the scene has none or the state
+  // cannot give them. See the functions below.
+  Vec3 tip_displacement = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // m
+  Vec3 support_force = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());     // N
+  double pendulum_angle = std::numeric_limits<double>::quiet_NaN();                  // rad
 };
 
 Sample measure(const Model& model, const State& state, const MetricsBaseline& baseline);
+
+// Mean position of the tip particles (Model::observables.tip) minus their mean rest position
+// (m). NaN when the model has no tip.
+Vec3 tip_displacement(const Model& model, const State& state);
+
+// The force the supports exert on the body (N): minus the sum, over the particles with
+// inv_mass 0 (pinned or kinematic), of the constraint forces on them, grad_i C_j(x) lambda_j
+// (State::lambda's convention) over the model constraints j touching them. A chain hanging at
+// rest gets its weight, upward. 0 when no constraint touches such a particle (nothing pinned).
+// NaN when any lambda involved is NaN (solvers without multipliers), in the initial state
+// (state.step == 0: no step has computed the multipliers yet), when state.lambda does not have
+// one entry per constraint, when a gradient involved is undefined (with lambda != 0), and when
+// an FEM element touches a support (its forces are not in lambda). Contacts and colliders are
+// not supports here.
+Vec3 support_force(const Model& model, const State& state);
+
+// The signed angle (rad) of the pendulum's bob (Model::observables.bob) about the pivot, from
+// the gravity direction g^: with d = x_bob - pivot and e = the unit vector of +x with its
+// component along g^ removed, atan2(d . e, d . g^), in (-pi, pi], positive towards +x. The
+// component of d out of the plane of g^ and +x is ignored. NaN without a bob, without gravity, or
+// when gravity is along x.
+double pendulum_angle(const Model& model, const State& state);
 
 // When a run counts as exploded. Keys of the [limits] table.
 struct ExplosionLimits {

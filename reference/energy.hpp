@@ -7,6 +7,9 @@
 //                                                               their elements stand for them)
 //        - sum over dynamic particles of m g . x
 //   damping force f_d(x, v) = - sum over constraints of beta grad C (grad C . v)
+//                             (compliant and FEM-kind constraints, v including the kinematic
+//                             particles' velocities; a rigid constraint's beta is ignored: XPBD's
+//                             gamma = alpha beta / h vanishes with alpha)
 //
 // The degrees of freedom q are the coordinates of the dynamic particles (inv_mass > 0), three per
 // particle in particle order; kinematic and pinned particles sit on their targets at time t.
@@ -60,6 +63,8 @@ class EnergyModel {
   double energy(const Points& x) const;
   void gradient(const Points& x, Eigen::VectorXd& g) const;
   const SparsityPattern& hessian_pattern() const { return pattern_; }
+  // With project_psd each term's dense block is projected onto the positive semi-definite cone
+  // (negative eigenvalues clamped to 0) before it is added, so the sum is PSD.
   void hessian(const Points& x, std::vector<double>& values, bool project_psd = false) const;
 
   // Damping force f_d (N, per dof) and the matrix D = sum beta grad C grad C^T (N s/m, in
@@ -79,11 +84,17 @@ class EnergyModel {
   Eigen::VectorXd mass_;
   std::vector<int> rigid_;
   std::vector<int> compliant_;      // model constraints in U
+  std::vector<int> damped_;         // model constraints in f_d: compliant or FEM-kind, damping > 0
+  std::vector<int> damped_term_;    // (damped_.size()) the term whose slots each one uses
   bool has_damping_ = false;
   SparsityPattern pattern_;
-  // For each term (compliant constraint, then FEM element) the pattern positions of its
-  // (arity*3)^2 block entries, -1 where a particle is not dynamic.
-  std::vector<std::vector<std::int64_t>> slots_;
+  // Hessian slots, one per 3x3 block. Terms: the compliant constraints, then the FEM elements,
+  // then the damped FEM-kind constraints. Term k owns slots_[slot_start_[k] ...] (arity^2 of
+  // them): for particles (i, j) of its stencil, slot i + arity j is the pattern position of entry
+  // (3 dof_i, 3 dof_j), -1 where a particle is not dynamic; entry (3 dof_i + r, 3 dof_j + c) is at
+  // that position + c (column_start[3 dof_j + 1] - column_start[3 dof_j]) + r.
+  std::vector<std::int64_t> slots_;
+  std::vector<std::int64_t> slot_start_;  // (terms + 1)
 };
 
 }  // namespace pbdbench

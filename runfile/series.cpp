@@ -78,6 +78,22 @@ const std::array kSeries = {
     SeriesSpec{"extent", "m", "max distance of a particle from the centroid", 1, true,
                PBDBENCH_SAMPLE(extent)},
 
+    // Observables of the scene (Model::observables; metrics/metrics.hpp says how each is taken).
+    SeriesSpec{"tip_displacement", "m",
+               "mean position of the tip particles minus their mean rest position (NaN without a "
+               "tip)",
+               3, true, PBDBENCH_SAMPLE3(tip_displacement)},
+    SeriesSpec{"support_force", "N",
+               "force of the supports (particles with inv_mass 0) on the body: minus the sum of "
+               "grad_i C lambda over the constraints touching them (NaN when the solver keeps no "
+               "multipliers, e.g. pbd, in the initial row, or when an FEM element touches a "
+               "support; 0 when nothing is pinned)",
+               3, true, PBDBENCH_SAMPLE3(support_force)},
+    SeriesSpec{"pendulum_angle", "rad",
+               "signed angle of the bob about the pivot from the gravity direction, positive "
+               "towards +x (NaN without a bob)",
+               1, true, PBDBENCH_SAMPLE(pendulum_angle)},
+
     // What the step did (StepReport; 0 or NaN for the initial row).
     SeriesSpec{"substeps", "1", "substeps taken in the step", 1, true, PBDBENCH_REPORT(substeps)},
     SeriesSpec{"iterations", "1", "projection sweeps summed over substeps", 1, true,

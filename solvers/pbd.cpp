@@ -11,7 +11,11 @@
 //   contact projected with k = 1 when C < 0                                    (lines 9-11)
 //   v_i = (p_i - x_i) / h,  x_i = p_i                                          (lines 12-15)
 //   velocity pass: friction and restitution on the touching contacts           (line 16)
+#include <algorithm>
+#include <limits>
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "solvers/kernels.hpp"
@@ -48,7 +52,8 @@ class PbdSolver final : public Solver {
     const int substeps = options_.substeps;
     const double h = dt / substeps;
     report.substeps = substeps;
-    state.lambda.assign(model.constraints.size(), 0.0);  // PBD has no multipliers
+    // PBD has no multipliers, hence no constraint forces (core/state.hpp): NaN.
+    state.lambda.assign(model.constraints.size(), std::numeric_limits<double>::quiet_NaN());
     Points& x = state.x;
     Points& v = state.v;
 
@@ -105,6 +110,13 @@ class PbdSolver final : public Solver {
 }  // namespace
 
 std::unique_ptr<Solver> make_pbd_solver(const SolverOptions& options, const Model& model) {
+  // A FEM element is a material (Pa); PBD's per-constraint stiffness k is not one.
+  const bool fem_constraints = std::any_of(model.constraints.begin(), model.constraints.end(),
+                                           [](const Constraint& c) { return is_fem_kind(c.kind); });
+  if (!model.elements.empty() || fem_constraints)
+    throw std::invalid_argument(
+        "pbd has no FEM material: its stiffness k is not a material; use xpbd or a reference "
+        "solver (the model has " + std::to_string(model.elements.size()) + " FEM elements)");
   return std::make_unique<PbdSolver>(options, model);
 }
 

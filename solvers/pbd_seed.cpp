@@ -12,8 +12,10 @@
 // The listing works in float (D10): the state is copied to float at the start of a step and back
 // to double at its end (a float survives that round trip exactly). With "D10" fixed the very same
 // code runs in double. Substeps: the whole listing Step(dt / substeps) is repeated.
+#include <algorithm>
 #include <cmath>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -97,7 +99,7 @@ class PbdSeedSolver final : public Solver {
     StepReport report;
     report.substeps = options_.substeps;
     const double h = dt / options_.substeps;
-    state.lambda.assign(model.constraints.size(), 0.0);
+    state.lambda.assign(model.constraints.size(), std::nan(""));  // no multipliers: no forces
     skipped_ = 0;
     // D10: the listing's float state (exact copies of float values survive the way back).
     particles_.resize(static_cast<size_t>(particles_count_));
@@ -557,6 +559,13 @@ class PbdSeedSolver final : public Solver {
 }  // namespace
 
 std::unique_ptr<Solver> make_pbd_seed_solver(const SolverOptions& options, const Model& model) {
+  // A FEM element is a material (Pa); PBD's per-constraint stiffness k is not one.
+  const bool fem_constraints = std::any_of(model.constraints.begin(), model.constraints.end(),
+                                           [](const Constraint& c) { return is_fem_kind(c.kind); });
+  if (!model.elements.empty() || fem_constraints)
+    throw std::invalid_argument(
+        "pbd-seed has no FEM material: its stiffness k is not a material; use xpbd or a reference "
+        "solver (the model has " + std::to_string(model.elements.size()) + " FEM elements)");
   const SeedFixes fix(options.seed_fixes);
   if (fix(10)) return std::make_unique<PbdSeedSolver<double>>(options, model);  // D10 fixed
   return std::make_unique<PbdSeedSolver<float>>(options, model);                // D10: float

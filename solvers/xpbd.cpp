@@ -15,6 +15,9 @@
 //   g = M (x - x~) - sum_j grad C_j^T lambda_j   over the dynamic particles (constraints and
 //       contacts),  h_j = C_j(x) + alpha~_j lambda_j (model constraints; contacts with lambda > 0),
 // reported as their 2-norms residual_g and residual_h.
+// After the last substep State::lambda is turned into forces: lambda_j / h^2 (N for a distance
+// constraint), so that grad_i C_j lambda_j is the force of constraint j on particle i, as for
+// every solver (core/state.hpp).
 //
 // Jacobi order: every dlambda_j and correction is computed from the positions at the start of the
 // sweep; then x_i += omega (sum of corrections) / n_i (n_i with jacobi_averaging, else 1) and
@@ -25,6 +28,8 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "core/contacts.hpp"
@@ -85,6 +90,10 @@ class XpbdSolver final : public Solver {
       finish_substep(model, t_end, h, work_, x, v);
       timer.lap(report.time_velocity);
     }
+    // State::lambda holds forces (core/state.hpp): the last substep's accumulated multiplier is
+    // an impulse times h, the force is lambda / h^2 (Macklin et al. 2016: f = grad C^T lambda /
+    // h^2). Every substep starts from lambda = 0, so this changes nothing else.
+    for (double& l : lambda) l /= h * h;
     state.time += dt;
     state.step += 1;
     return report;
@@ -105,7 +114,7 @@ class XpbdSolver final : public Solver {
           const int p = st.particles[static_cast<size_t>(i)];
           displacement[static_cast<size_t>(i)] = work_.p.row(p) - x_n.row(p);
         }
-      const ConstraintEval e = eval_constraint(c, work_.p);
+      const ConstraintEval e = eval_constraint(model, c, work_.p);
       return xpbd_project(e, w, st.count, k, lambda[static_cast<size_t>(j)], displacement,
                           st.correction);
     }
@@ -127,7 +136,7 @@ class XpbdSolver final : public Solver {
     double h2 = 0.0;
     for (size_t j = 0; j < model.constraints.size(); ++j) {
       const Constraint& c = model.constraints[j];
-      const ConstraintEval e = eval_constraint(c, p);
+      const ConstraintEval e = eval_constraint(model, c, p);
       for (int i = 0; i < arity(c.kind); ++i)
         g.row(c.particles[static_cast<size_t>(i)]) -=
             lambda[j] * e.grad[static_cast<size_t>(i)].transpose();
@@ -164,6 +173,14 @@ class XpbdSolver final : public Solver {
 }  // namespace
 
 std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model) {
+  // FEM elements enter xpbd only through their constraint form (the FEM kinds, Macklin and
+  // Mueller 2021), which the stable neo-Hookean material has and the others do not.
+  for (size_t k = 0; k < model.elements.size(); ++k)
+    if (model.elements[k].material != Material::StableNeoHookean)
+      throw std::invalid_argument(
+          "xpbd cannot simulate element " + std::to_string(k) + ": its material " +
+          to_string(model.elements[k].material) +
+          " has no XPBD constraint form (only stable_neo_hookean has); use a reference solver");
   return std::make_unique<XpbdSolver>(options, model);
 }
 

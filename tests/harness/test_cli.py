@@ -218,6 +218,105 @@ class CliTest(unittest.TestCase):
         self.assertEqual(pbdbench("run").returncode, 2)
         self.assertEqual(pbdbench("frobnicate").returncode, 2)
 
+    def chain(self, name, *sets, solver="xpbd"):
+        out = os.path.join(self.dir, name)
+        args = ["run", "hanging_chain", "--solver", solver, "--out", out, "--quiet"]
+        for s in sets:
+            args += ["--set", s]
+        r = pbdbench(*args)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        return out
+
+    def test_observable_series_in_run_files(self):
+        xpbd, pbd = self.chain("xpbd.h5"), self.chain("pbd.h5", solver="pbd")
+        with h5py.File(xpbd, "r") as f:
+            force = f["series/support_force"][()]
+            self.assertEqual(f["series/support_force"].attrs["units"], "N")
+            self.assertEqual(f["series/tip_displacement"].shape, force.shape)
+            self.assertEqual(f["series/pendulum_angle"].attrs["units"], "rad")
+        self.assertTrue(np.all(np.isnan(force[0])))  # the initial row: no multipliers yet
+        # 19 dynamic particles of 1 kg hang from the pin: 186.4 N upward. At 2 s the chain is
+        # still settling, its support force swinging about the weight by about 1 % (183.9 N
+        # measured); 3 % tells the weight from that of all 20 particles (196.2 N).
+        weight = 19 * 9.81
+        self.assertLess(abs(force[-1, 1] - weight), 0.03 * weight, force[-1])
+        self.assertLess(np.abs(force[-1, [0, 2]]).max(), 1e-9 * weight, force[-1])
+        with h5py.File(pbd, "r") as f:  # pbd keeps no multipliers: no support force
+            self.assertTrue(np.all(np.isnan(f["series/support_force"][()])))
+
+    def test_compare_two_runs_writes_hdf5_png_and_summary(self):
+        xpbd, pbd = self.chain("xpbd.h5"), self.chain("pbd.h5", solver="pbd")
+        out, png = os.path.join(self.dir, "cmp.h5"), os.path.join(self.dir, "cmp.png")
+        r = pbdbench("compare", xpbd, pbd, "--out", out, "--plot", png)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        for text in ("run:       " + xpbd + " (xpbd, hanging_chain, complete)",
+                     "reference: " + pbd + " (pbd, hanging_chain, complete)",
+                     "13 common frames, t = 0 to 2 s", "13 at the same times, 0 interpolated",
+                     "position error at t = 2 s", "largest max position error", "support force: run",
+                     "NaN throughout in the reference", "total_energy", "-> " + out, "wrote " + png):
+            self.assertIn(text, r.stdout)
+        self.assertEqual(r.stderr, "")
+        self.assertLess(r.stdout.index("-> " + out), r.stdout.index("wrote " + png))  # in order
+        with open(png, "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+        with h5py.File(out, "r") as f, h5py.File(xpbd, "r") as a, h5py.File(pbd, "r") as b:
+            self.assertEqual(attr(f, "run_solver"), "xpbd")
+            self.assertEqual(attr(f, "reference_solver"), "pbd")
+            self.assertEqual(attr(f, "run_file"), xpbd)
+            self.assertEqual(attr(f, "reference_config"), attr(b, "config"))
+            self.assertEqual(attr(f, "git_commit"), attr(a, "git_commit"))
+            t = f["compare/time"][()]
+            np.testing.assert_array_equal(t, a["frames/time"][()])
+            rms = f["compare/position_error_rms"][()]
+            self.assertEqual(rms.shape, t.shape)
+            self.assertEqual(rms[0], 0.0)  # the same initial state
+            x, y = a["frames/positions"][-1], b["frames/positions"][-1]
+            e = np.linalg.norm(x - y, axis=1)
+            self.assertAlmostEqual(rms[-1], np.sqrt(np.mean(e ** 2)), delta=1e-15)
+            self.assertAlmostEqual(f["compare/position_error_max"][-1], e.max(), delta=1e-15)
+            d = f["compare/diff/total_energy"][()]
+            self.assertEqual(d.shape, f["compare/series_time"].shape)
+            self.assertAlmostEqual(d[-1], a["series/total_energy"][-1] - b["series/total_energy"][-1], delta=1e-12)
+            self.assertEqual(f["compare/diff/total_energy"].attrs["units"], "J")
+            for name in ("wall_step", "time_project", "iterations", "step", "time"):
+                self.assertNotIn(name, f["compare/diff"])
+            self.assertIn("support_force_run", f["compare/observables"])
+            self.assertTrue(np.all(np.isnan(f["compare/observables/support_force_reference"][()])))
+
+    def test_compare_interpolates_a_sparser_reference_and_warns(self):
+        fine = self.chain("fine.h5", "time.dt=0.008333333333333333", "time.duration=0.5")
+        coarse = self.chain("coarse.h5", "time.duration=0.5")
+        r = pbdbench("compare", fine, coarse, "--until", "0.4")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        # The fine run's frames every 10 steps of 1/120 s, the coarse one's every 1/6 s: up to 0.4 s,
+        # 5 common frames, 3 of them (0, 1/6, 1/3 s) the reference's own.
+        self.assertIn("5 common frames, t = 0 to 0.3333 s", r.stdout)
+        self.assertIn("3 at the same times, 2 interpolated", r.stdout)
+        self.assertIn("warning: the reference's frames are sparser", r.stderr)
+        r = pbdbench("compare", coarse, fine)  # the other way round: nothing to interpolate
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("4 at the same times, 0 interpolated", r.stdout)
+        self.assertEqual(r.stderr, "")
+
+    def test_compare_refuses_different_scenes(self):
+        chain = self.chain("chain.h5", "time.duration=0.1")
+        longer = self.chain("longer.h5", "time.duration=0.1", "scene.link_length=0.11")
+        fall = os.path.join(self.dir, "fall.h5")
+        self.assertEqual(pbdbench("run", "free_fall", "--out", fall, "--quiet").returncode, 0)
+        out = os.path.join(self.dir, "no.h5")
+        r = pbdbench("compare", chain, fall, "--out", out)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertIn("not runs of the same scene: 20 particles against 1", r.stderr)
+        self.assertFalse(os.path.exists(out))
+        r = pbdbench("compare", chain, longer)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertIn("rest positions differ", r.stderr)
+        self.assertEqual(pbdbench("compare", chain, chain, "--until", "-1").returncode, 2)
+        self.assertEqual(pbdbench("compare", chain).returncode, 2)  # usage
+        r = pbdbench("compare", chain, os.path.join(self.dir, "missing.h5"))
+        self.assertEqual(r.returncode, 1)  # a file that cannot be read
+        self.assertIn("missing.h5", r.stderr)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -10,6 +10,8 @@
 #include <numbers>
 #include <string>
 
+#include "core/fem.hpp"
+
 namespace pbdbench {
 namespace {
 
@@ -367,6 +369,244 @@ TEST(metrics, ExplosionReasonForNaN) {
   EXPECT_TRUE(std::isnan(out.max_speed));
   EXPECT_EQ(explosion_reason(t.m, vel, out, ExplosionLimits{}, b),
             "non-finite velocity of particle 2");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Observables of the scene: tip displacement, support force, pendulum angle.
+
+TEST(metrics, TipDisplacementIsTheMeanDisplacementOfTheTip) {
+  Model m = particles({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {2, 1, 0}}, {0, 1, 1, 1});
+  State s = rest_state(m);
+  EXPECT_TRUE(tip_displacement(m, s).array().isNaN().all());  // no tip
+  EXPECT_TRUE(measure(m, s, measure_baseline(m, s)).tip_displacement.array().isNaN().all());
+  m.observables.tip = {2, 3};
+  s.x.row(1) += Eigen::RowVector3d(5, 5, 5);  // not a tip particle
+  s.x.row(2) += Eigen::RowVector3d(0.1, -0.2, 0.0);
+  s.x.row(3) += Eigen::RowVector3d(0.3, 0.0, 0.4);
+  const Vec3 d = tip_displacement(m, s);  // ((0.1, -0.2, 0) + (0.3, 0, 0.4)) / 2
+  EXPECT_TRUE(Near(d.x(), 0.2));
+  EXPECT_TRUE(Near(d.y(), -0.1));
+  EXPECT_TRUE(Near(d.z(), 0.2));
+  EXPECT_EQ(measure(m, s, measure_baseline(m, s)).tip_displacement, d);
+}
+
+// A chain hanging from a pin at the origin: particle 0 pinned, 1 kg at y = -1 and 3 kg at y = -2,
+// links of rest 1 m. At rest the top link carries 4 kg, the lower one 3 kg; in State::lambda's
+// convention the force of link j on its lower particle, grad C lambda = (0, -1, 0) lambda, is the
+// tension upward, so lambda = -tension.
+struct HangingChain {
+  static constexpr double g = 9.81;
+  Model m = particles({{0, 0, 0}, {0, -1, 0}, {0, -2, 0}}, {0.0, 1.0, 1.0 / 3.0});
+  State s;
+  HangingChain() {
+    m.gravity = Vec3(0, -g, 0);
+    const std::uint16_t stretch = m.group_index("stretch");
+    for (int i = 0; i < 2; ++i) {
+      Constraint c;
+      c.particles = {i, i + 1, -1, -1};
+      c.rest = 1.0;
+      c.group = stretch;
+      m.constraints.push_back(c);
+    }
+    s = rest_state(m);
+    s.step = 1;  // the multipliers of a step
+    s.lambda = {-4.0 * g, -3.0 * g};
+  }
+};
+
+TEST(metrics, SupportForceOfAHangingChainIsItsWeightUpward) {
+  HangingChain c;
+  const Vec3 f = support_force(c.m, c.s);
+  EXPECT_TRUE(Near(f.x(), 0.0));
+  EXPECT_TRUE(Near(f.y(), 4.0 * HangingChain::g));  // the whole weight, upward
+  EXPECT_TRUE(Near(f.z(), 0.0));
+  EXPECT_EQ(measure(c.m, c.s, measure_baseline(c.m, c.s)).support_force, f);
+  // The lower link's multiplier is not involved: NaN there changes nothing.
+  c.s.lambda[1] = kNaN;
+  EXPECT_EQ(support_force(c.m, c.s), f);
+}
+
+TEST(metrics, SupportForceFollowsTheGradients) {
+  // A link from a pin at the origin to a particle at (2, 0, 0), rest 1 m, lambda = -5 N: the
+  // link pulls the pin towards the particle with grad_0 C lambda = (-1, 0, 0)(-5) = (5, 0, 0);
+  // the support holds the body back with (-5, 0, 0).
+  Model m = particles({{0, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}, {3, 1, 0}, {3, 0, 1}},
+                      {0, 1, 0, 1, 1, 1});
+  const std::uint16_t g = m.group_index("stretch");
+  Constraint link;
+  link.particles = {0, 1, -1, -1};
+  link.rest = 1.0;
+  link.group = g;
+  // A unit tet at (3, 0, 0) with its vertex 0 (particle 2) pinned: grad_0 V = -(1/6) (e1 + e2 +
+  // e3), so with lambda = 3 the force on the pin is -(1/2)(1, 1, 1) and the support's
+  // (1/2)(1, 1, 1).
+  Constraint tet;
+  tet.kind = ConstraintKind::Volume;
+  tet.particles = {2, 3, 4, 5};
+  tet.rest = 1.0 / 6.0;
+  tet.group = m.group_index("volume");
+  // A link between the two pins: its forces on them cancel.
+  Constraint pins;
+  pins.particles = {0, 2, -1, -1};
+  pins.rest = 2.5;
+  pins.group = g;
+  m.constraints = {link, tet, pins};
+  State s = rest_state(m);
+  s.step = 3;
+  s.lambda = {-5.0, 3.0, 7.0};
+  const Vec3 f = support_force(m, s);
+  EXPECT_TRUE(Near(f.x(), -5.0 + 0.5));
+  EXPECT_TRUE(Near(f.y(), 0.5));
+  EXPECT_TRUE(Near(f.z(), 0.5));
+}
+
+TEST(metrics, SupportForceIsNaNWithoutMultipliersAndZeroWithoutSupports) {
+  HangingChain c;
+  auto is_nan = [](const Vec3& v) { return v.array().isNaN().all(); };
+  {
+    State s = c.s;  // pbd and pbd-seed leave NaN
+    s.lambda = {kNaN, kNaN};
+    EXPECT_TRUE(is_nan(support_force(c.m, s)));
+    EXPECT_TRUE(is_nan(measure(c.m, s, measure_baseline(c.m, s)).support_force));
+  }
+  {
+    State s = c.s;  // the initial state: no step has computed lambda
+    s.step = 0;
+    EXPECT_TRUE(is_nan(support_force(c.m, s)));
+  }
+  {
+    State s = c.s;
+    s.lambda.pop_back();
+    EXPECT_TRUE(is_nan(support_force(c.m, s)));
+  }
+  {
+    Model m = c.m;  // an FEM element touching the pin: its forces are not in lambda
+    FemElement e;
+    e.particles = {0, 1, 2, 1};
+    m.elements.push_back(e);
+    EXPECT_TRUE(is_nan(support_force(m, c.s)));
+    m.elements[0].particles = {1, 2, 1, 2};  // not touching it: fine
+    EXPECT_FALSE(is_nan(support_force(m, c.s)));
+  }
+  {
+    Model m = c.m;  // nothing pinned: 0, whatever lambda holds, initial state included
+    m.inv_mass[0] = 1.0;
+    State s = c.s;
+    s.lambda = {kNaN, kNaN};
+    s.step = 0;
+    EXPECT_EQ(support_force(m, s), Vec3::Zero());
+  }
+}
+
+TEST(metrics, PendulumAngleFromGravityPositiveTowardsX) {
+  Model m = particles({{1, 2, 0}, {1, 1, 0}}, {0, 1});
+  m.observables.pivot = Vec3(1, 2, 0);
+  State s = rest_state(m);
+  EXPECT_TRUE(std::isnan(pendulum_angle(m, s)));  // no bob
+  EXPECT_TRUE(std::isnan(measure(m, s, measure_baseline(m, s)).pendulum_angle));
+  m.observables.bob = 1;
+  const double L = 1.5;
+  for (double theta : {0.0, 0.3, -0.7, 2.5, -3.0}) {
+    // gravity -y: the plane x-y; an out-of-plane offset in z is ignored.
+    s.x.row(1) = Eigen::RowVector3d(1 + L * std::sin(theta), 2 - L * std::cos(theta), 0.25);
+    EXPECT_TRUE(Near(pendulum_angle(m, s), theta)) << theta;
+    EXPECT_TRUE(Near(measure(m, s, measure_baseline(m, s)).pendulum_angle, theta)) << theta;
+    // gravity -z, tilted: the plane of gravity and +x.
+    Model mz = m;
+    mz.gravity = Vec3(0, 0, -9.81);
+    s.x.row(1) = Eigen::RowVector3d(1 + L * std::sin(theta), 2 + 0.4, -L * std::cos(theta));
+    EXPECT_TRUE(Near(pendulum_angle(mz, s), theta)) << theta;
+  }
+  Model none = m;
+  none.gravity = Vec3::Zero();
+  EXPECT_TRUE(std::isnan(pendulum_angle(none, s)));
+  none.gravity = Vec3(-9.81, 0, 0);  // along x: no plane
+  EXPECT_TRUE(std::isnan(pendulum_angle(none, s)));
+}
+
+// ---------------------------------------------------------------------------------------------
+// FEM elements and their constraints (core/fem.hpp).
+
+// The unit right tet on particles 0-3 with a stable neo-Hookean element (E = 1e5 Pa, nu = 0.3:
+// two FEM-kind constraints), and a 2.5 m segment 0-4 with a distance constraint of rest 2 m in
+// group "stretch" (error 0.25).
+Model tet_and_segment() {
+  Model m = particles({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {2.5, 0, 0}}, {1, 1, 1, 1, 1});
+  m.gravity = Vec3::Zero();
+  m.tets = {{0, 1, 2, 3}};
+  Constraint d;
+  d.particles = {0, 4, -1, -1};
+  d.rest = 2.0;
+  d.group = m.group_index("stretch");
+  m.constraints = {d};
+  fem::add_fem_elements(m, m.tets, Material::StableNeoHookean, 1e5, 0.3);
+  return m;
+}
+
+TEST(metrics, FemKindsAreLeftOutOfTheConstraintError) {
+  const Model m = tet_and_segment();
+  ASSERT_EQ(m.constraint_count(), 3);
+  ASSERT_EQ(m.group_names, (std::vector<std::string>{"stretch", "fem_deviatoric", "fem_hydrostatic"}));
+  const State s = rest_state(m);
+  const Sample out = measure(m, s, measure_baseline(m, s));
+  // At rest C_D = sqrt(3) and C_H = -mu / lambda_snh: counted, they would dominate.
+  EXPECT_TRUE(Near(out.constraint_error_max, 0.25));
+  EXPECT_TRUE(Near(out.constraint_error_rms, 0.25));  // over the one measured constraint
+  ASSERT_EQ(out.groups.size(), 3u);
+  EXPECT_EQ(out.groups[0].count, 1);
+  EXPECT_TRUE(Near(out.groups[0].max, 0.25));
+  for (size_t g : {1u, 2u}) {  // the FEM groups have no error at all: NaN, not 0
+    EXPECT_EQ(out.groups[g].count, 0) << m.group_names[g];
+    EXPECT_TRUE(std::isnan(out.groups[g].max)) << m.group_names[g];
+    EXPECT_TRUE(std::isnan(out.groups[g].rms)) << m.group_names[g];
+  }
+  // A model of FEM constraints only measures nothing: 0, as a model without constraints.
+  Model only = tet_and_segment();
+  only.constraints.erase(only.constraints.begin());
+  const Sample none = measure(only, s, measure_baseline(only, s));
+  EXPECT_EQ(none.constraint_error_max, 0.0);
+  EXPECT_EQ(none.constraint_error_rms, 0.0);
+}
+
+// Psi_snh(s I) - Psi_snh(I) and Psi_corotated(s I), written out: with ls = lambda + mu,
+// Psi_snh(F) = mu/2 (|F|^2 - 3) + ls/2 (det F - 1 - mu/ls)^2, Psi_snh(I) = mu^2 / (2 ls);
+// Psi_corotated(F) = mu |F - R|^2 + lambda/2 (det F - 1)^2 with R = I for F = s I.
+double snh_uniform(double mu, double lambda, double s) {
+  const double ls = lambda + mu, t = s * s * s - 1.0 - mu / ls;
+  return 0.5 * mu * (3.0 * s * s - 3.0) + 0.5 * ls * t * t - mu * mu / (2.0 * ls);
+}
+double corotated_uniform(double mu, double lambda, double s) {
+  const double j = s * s * s - 1.0;
+  return mu * 3.0 * (s - 1.0) * (s - 1.0) + 0.5 * lambda * j * j;
+}
+
+TEST(metrics, ElasticEnergyCountsEachElementOnce) {
+  Model m = tet_and_segment();
+  m.constraints[0].compliance = 0.01;  // the segment: C^2 / (2 alpha) = 0.25 / 0.02 = 12.5 J
+  // A second, corotated element on a tet scaled by 2 (particles 5-8, V0 = 8/6 m^3).
+  const Eigen::Index first = m.rest_positions.rows();
+  m.rest_positions.conservativeResize(first + 4, 3);
+  m.rest_positions.bottomRows(4) << 5, 0, 0, 7, 0, 0, 5, 2, 0, 5, 0, 2;
+  m.inv_mass.resize(static_cast<size_t>(first + 4), 1.0);
+  m.radius.resize(static_cast<size_t>(first + 4), 0.0);
+  fem::add_fem_elements(m, {{5, 6, 7, 8}}, Material::Corotated, 1e5, 0.3);
+  ASSERT_EQ(m.elements.size(), 2u);
+  const double mu = m.elements[0].mu, lambda = m.elements[0].lambda;
+
+  // At rest the elements store no energy; the FEM-kind constraints' C^2/(2 alpha), which is
+  // V0 (Psi_snh + 3 mu / 2) (about 1e4 J here), must not be added.
+  State s = rest_state(m);
+  const Sample rest = measure(m, s, measure_baseline(m, s));
+  EXPECT_NEAR(rest.elastic_energy, 12.5, 1e-9 * mu);  // round-off of F = Ds Dm^-1 against I
+
+  // Both tets stretched uniformly by 1.1 about their first vertex.
+  for (int i : {1, 2, 3}) s.x.row(i) = 1.1 * m.rest_positions.row(i);
+  for (int i : {6, 7, 8}) s.x.row(i) = m.rest_positions.row(5) + 1.1 * (m.rest_positions.row(i) - m.rest_positions.row(5));
+  const Sample out = measure(m, s, measure_baseline(m, s));
+  const double expected = 12.5 + (1.0 / 6.0) * snh_uniform(mu, lambda, 1.1) + (8.0 / 6.0) * corotated_uniform(mu, lambda, 1.1);
+  // The element energies go through Dm^-1, det F and an SVD: a few dozen ulps of the result.
+  EXPECT_TRUE(Near(out.elastic_energy, expected, 1e-12)) << out.elastic_energy - expected;
+  EXPECT_TRUE(Near(out.total_energy, expected, 1e-12));
 }
 
 }  // namespace

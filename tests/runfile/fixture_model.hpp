@@ -81,6 +81,9 @@ inline Sample fixture_sample(long r, size_t groups) {
   s.penetration_count = static_cast<int>(r % 5);
   s.max_speed = 0.1 * x;
   s.extent = 1.0 + 0.001 * x;
+  s.tip_displacement = Vec3(0.0, -1e-3 * x, 0.0);
+  s.support_force = Vec3(0.0, 9.81 + 1e-2 * x, 0.0);
+  s.pendulum_angle = std::sin(0.1 * x);
   return s;
 }
 

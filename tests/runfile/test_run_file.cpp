@@ -202,6 +202,9 @@ TEST(runfile_file, RoundTrip) {
     ASSERT_EQ(d.series.at("wall_step")[i], 1e-5 * x);
     ASSERT_EQ(d.series3.at("linear_momentum").row(r), Vec3(x, 2 * x, 3 * x).transpose());
     ASSERT_EQ(d.series3.at("angular_momentum")(r, 2), -3 * x);
+    ASSERT_EQ(d.series3.at("tip_displacement").row(r), Vec3(0.0, -1e-3 * x, 0.0).transpose());
+    ASSERT_EQ(d.series3.at("support_force")(r, 1), 9.81 + 1e-2 * x);
+    ASSERT_EQ(d.series.at("pendulum_angle")[i], std::sin(0.1 * x));
     // Group series: group g has max 1e-3 (r+1) (g+1), rms 1e-4 (r+1) (g+1).
     ASSERT_EQ(d.series.at("constraint_error_max_volume")[i], 1e-3 * (x + 1) * 2);
     ASSERT_EQ(d.series.at("constraint_error_rms_bending")[i], 1e-4 * (x + 1) * 3);

@@ -54,7 +54,7 @@ TEST(runfile_series, RequiredSeriesInOrder) {
       "volume_drift", "surface_volume", "surface_volume_drift", "kinetic_energy",
       "potential_energy", "elastic_energy", "total_energy", "linear_momentum",
       "angular_momentum", "penetration_max", "penetration_count", "max_speed", "extent",
-      "substeps", "iterations", "contacts", "active_contacts", "skipped", "residual_g",
+      "tip_displacement", "support_force", "pendulum_angle", "substeps", "iterations", "contacts", "active_contacts", "skipped", "residual_g",
       "residual_h", "time_predict", "time_contacts", "time_project", "time_velocity",
       "wall_step"};
   const auto all = names();
@@ -72,7 +72,8 @@ TEST(runfile_series, RequiredSeriesInOrder) {
 TEST(runfile_series, ShapesUnitsDocsAndDeterminism) {
   const std::set<std::string> timings = {"time_predict", "time_contacts", "time_project",
                                          "time_velocity", "time_linear", "wall_step"};
-  const std::set<std::string> vectors = {"linear_momentum", "angular_momentum"};
+  const std::set<std::string> vectors = {"linear_momentum", "angular_momentum",
+                                         "tip_displacement", "support_force"};
   for (const SeriesSpec& s : series_table()) {
     const std::string n(s.name);
     EXPECT_FALSE(s.units.empty()) << n;
@@ -87,7 +88,8 @@ TEST(runfile_series, ShapesUnitsDocsAndDeterminism) {
       {"surface_volume_drift", "1"}, {"kinetic_energy", "J"}, {"potential_energy", "J"},
       {"elastic_energy", "J"}, {"total_energy", "J"}, {"linear_momentum", "kg m/s"},
       {"angular_momentum", "kg m^2/s"}, {"penetration_max", "m"}, {"penetration_count", "1"},
-      {"max_speed", "m/s"}, {"extent", "m"}, {"wall_step", "s"}, {"time_project", "s"}};
+      {"max_speed", "m/s"}, {"extent", "m"}, {"wall_step", "s"}, {"time_project", "s"},
+      {"tip_displacement", "m"}, {"support_force", "N"}, {"pendulum_angle", "rad"}};
   for (const auto& [name, unit] : units) {
     const SeriesSpec* s = find(name);
     ASSERT_NE(s, nullptr) << name;
@@ -114,6 +116,9 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   s.penetration_count = 18;
   s.max_speed = 19.5;
   s.extent = 20.5;
+  s.tip_displacement = Vec3(43.5, 44.5, 45.5);
+  s.support_force = Vec3(46.5, 47.5, 48.5);
+  s.pendulum_angle = 49.5;
   StepReport r;
   r.substeps = 21;
   r.iterations = 22;
@@ -149,7 +154,9 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"time_project", {30.5}}, {"time_velocity", {31.5}}, {"wall_step", {34.5}},
       {"ref_steps", {35}}, {"newton_iterations", {36}}, {"linear_setups", {37}},
       {"linear_solves", {38}}, {"error_test_failures", {39}}, {"convergence_failures", {40}},
-      {"constraint_drift", {41.5}}, {"time_linear", {42.5}}};
+      {"constraint_drift", {41.5}}, {"time_linear", {42.5}},
+      {"tip_displacement", {43.5, 44.5, 45.5}}, {"support_force", {46.5, 47.5, 48.5}},
+      {"pendulum_angle", {49.5}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";

@@ -59,19 +59,23 @@ TEST(Xpbd, OneIterationOnALinearConstraintIsBackwardEuler) {
 }
 
 TEST(Xpbd, LambdaGivesTheForce) {
-  // A particle hanging at rest at its static equilibrium (stretch C = m g alpha): lambda / h^2
-  // is the constraint force, -m g (along the gradient, which points down to the particle).
+  // A particle hanging at rest at its static equilibrium (stretch C = m g alpha): lambda is the
+  // constraint force per unit of C (State::lambda's convention, core/state.hpp), -m g along the
+  // gradient, which points down to the particle: the force on it, grad C lambda, is +m g up.
+  // With substeps the force is the last substep's multiplier over h^2, not dt^2.
   const double mass = 2.0, alpha = 1e-4, g = 9.81, dt = 0.01;
   Model m = empty_model(Vec3(0, -g, 0));
   add_particle(m, Vec3::Zero(), 0.0);
   add_particle(m, Vec3(0, -1.0, 0), mass);
   add_distance(m, 0, 1, 1.0, 1.0, alpha);
-  State s = rest_state(m);
-  s.x(1, 1) = -(1.0 + mass * g * alpha);
-  auto sv = make_solver(options_for("xpbd", 1, 1), m);
-  for (int i = 0; i < 10; ++i) sv->step(m, s, dt);
-  EXPECT_NEAR(s.lambda[0] / (dt * dt), -mass * g, 1e-9 * mass * g);
-  EXPECT_NEAR(s.x(1, 1), -(1.0 + mass * g * alpha), kRoundoff);
+  for (int substeps : {1, 4}) {
+    State s = rest_state(m);
+    s.x(1, 1) = -(1.0 + mass * g * alpha);
+    auto sv = make_solver(options_for("xpbd", 1, substeps), m);
+    for (int i = 0; i < 10; ++i) sv->step(m, s, dt);
+    EXPECT_NEAR(s.lambda[0], -mass * g, 1e-9 * mass * g) << substeps << " substeps";
+    EXPECT_NEAR(s.x(1, 1), -(1.0 + mass * g * alpha), kRoundoff) << substeps << " substeps";
+  }
 }
 
 // The backward-Euler step of a chain with compliant distance constraints is the root of

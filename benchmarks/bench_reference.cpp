@@ -1,0 +1,106 @@
+// Cost of the reference integrators against mesh size: one backward-Euler step (ref-be) of a
+// stable neo-Hookean beam clamped at one end, from about 1k to about 100k tetrahedra. Reported per
+// size: time per step, Newton iterations, linear setups and solves, and the time spent in the
+// Jacobian and the sparse direct solver (counters). scripts/fit_growth.py fits the growth exponent
+// of each against the number of tetrahedra from this program's JSON output:
+//
+//   build/benchmarks/bench_reference --benchmark_out=cost.json --benchmark_out_format=json
+//   /usr/bin/python3 scripts/fit_growth.py cost.json
+#include <benchmark/benchmark.h>
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <string>
+
+#include "config/config.hpp"
+#include "runfile/build_info.hpp"
+#include "solvers/solver.hpp"
+
+using namespace pbdbench;
+
+namespace {
+
+// A beam of n x m x m cells (6 tets a cell), 10 m : 1 m : 1 m, E = 1e7 Pa, nu = 0.3, clamped at
+// x_min, under gravity.
+config::Config beam(int n, int m, const char* solver) {
+  const std::string text = fmt::format(R"(
+[time]
+dt = 0.016666666666666666
+duration = 0.016666666666666666
+[solver]
+name = "{}"
+[scene]
+kind = "tet_block"
+cells = [{}, {}, {}]
+size = [10.0, 1.0, 1.0]
+fixed = "x_min"
+edges = false
+volumes = false
+material = "stable_neo_hookean"
+youngs_modulus = 1e7
+poisson_ratio = 0.3
+)",
+                                       solver, n, m, m);
+  return config::load_text(text, "bench_reference.toml");
+}
+
+void BM_ReferenceStep(benchmark::State& bench, int n, int m, const char* solver) {
+  const config::Config cfg = beam(n, m, solver);
+  const Scene scene = config::build_scene(cfg);
+  const double dt = config::run_options(cfg).dt;
+  StepReport last;
+  double newton = 0, setups = 0, solves = 0, linear = 0;
+  long steps = 0;
+  for (auto _ : bench) {
+    bench.PauseTiming();
+    auto s = make_solver(config::solver_options(cfg), scene.model);  // setup is not timed
+    State state = scene.initial;
+    bench.ResumeTiming();
+    last = s->step(scene.model, state, dt);
+    benchmark::DoNotOptimize(state.x.data());
+    newton += static_cast<double>(last.newton_iterations);
+    setups += static_cast<double>(last.linear_setups);
+    solves += static_cast<double>(last.linear_solves);
+    linear += last.time_linear;
+    ++steps;
+  }
+  const double k = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
+  bench.counters["tets"] = 6.0 * n * m * m;
+  bench.counters["dofs"] = 3.0 * ((n + 1) * (m + 1) * (m + 1) - (m + 1) * (m + 1));
+  bench.counters["newton_iterations"] = newton * k;
+  bench.counters["linear_setups"] = setups * k;
+  bench.counters["linear_solves"] = solves * k;
+  bench.counters["linear_seconds"] = linear * k;
+}
+
+std::string cpu_model() {
+  std::ifstream f("/proc/cpuinfo");
+  for (std::string line; std::getline(f, line);)
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // (cells along the beam, cells across): 6 n m^2 tets, from 1,536 to 98,304.
+  const int sizes[][2] = {{16, 4}, {32, 6}, {48, 8}, {64, 10}, {96, 12}, {128, 16}};
+  for (const auto& sz : sizes)
+    benchmark::RegisterBenchmark(fmt::format("ref-be/beam/{}tets", 6 * sz[0] * sz[1] * sz[1]).c_str(),
+                                 BM_ReferenceStep, sz[0], sz[1], "ref-be")
+        ->Unit(benchmark::kMillisecond)
+        ->Iterations(1)
+        ->Repetitions(3);
+  benchmark::AddCustomContext("pbdbench_version", build_info().version);
+  benchmark::AddCustomContext("git_commit", build_info().git_commit);
+  benchmark::AddCustomContext("compiler", build_info().compiler);
+  benchmark::AddCustomContext("build_type", build_info().build_type);
+  benchmark::AddCustomContext("cxx_flags", build_info().cxx_flags);
+  benchmark::AddCustomContext("cpu_model", cpu_model());
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,60 @@
+// A MechanicalSystem M q'' = f(t, q, u) over n dofs as the first-order system the ODE
+// integrators (ref-bdf, ref-be, ref-sdirk2) integrate, over 2n unknowns y = [q; u]:
+//
+//   y' = [u; M^-1 f(t, q, u)]
+//   J = dy'/dy = [[0,         I        ],      (K = -df/dq, D = -df/du, both from the
+//                 [-M^-1 K,  -M^-1 D   ]]       MechanicalSystem in its pattern)
+//
+// J's pattern is built once: column j < n holds (j, j), an explicit zero, then the rows n + i of
+// the pattern's column j (-K_ij / m_i); column n + j holds (j, n + j) = 1, then the rows n + i of
+// the pattern's column j (-D_ij / m_i) when the system has damping, else only (n + j, n + j), an
+// explicit zero. So every diagonal entry of the 2n x 2n matrix is in the pattern, and the
+// integrators' I - gamma J (SUNMatScaleAddI) keeps it: KLU's symbolic analysis is done once.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "reference/mechanical_system.hpp"
+#include "reference/sundials_support.hpp"
+
+namespace pbdbench {
+
+class FirstOrderSystem {
+ public:
+  // Keeps a reference to `system`, which must outlive this object.
+  explicit FirstOrderSystem(const MechanicalSystem& system);
+
+  int dofs() const { return n_; }       // n
+  int size() const { return 2 * n_; }   // 2n
+  const MechanicalSystem& system() const { return system_; }
+
+  // y' at (t, y): ydot = [u; M^-1 f(t, q, u)]. y and ydot have size() entries, distinct.
+  void rhs(double t, const double* y, double* ydot);
+  // J's values at (t, y) in jacobian_pattern() order, every entry written (explicit zeros too).
+  void jacobian(double t, const double* y, double* values);
+  const sun::CscPattern& jacobian_pattern() const { return pattern_; }
+
+  // y = [q; u] and back.
+  void pack(const Eigen::VectorXd& q, const Eigen::VectorXd& u, double* y) const;
+  void unpack(const double* y, Eigen::VectorXd& q, Eigen::VectorXd& u) const;
+
+ private:
+  void load(const double* y);  // q_, u_ from y
+
+  const MechanicalSystem& system_;
+  int n_ = 0;
+  Eigen::VectorXd inv_mass_;  // (n) 1/kg per dof
+  sun::CscPattern pattern_;   // (2n x 2n)
+  // For entry p of system_.pattern() (row i, column j): the slot of (n + i, j) in pattern_, and
+  // of (n + i, n + j) when the system has damping; the row i of each entry.
+  std::vector<sunindextype> k_slot_, d_slot_;
+  std::vector<int> entry_row_;
+  std::vector<sunindextype> identity_slot_;  // (n) slot of (j, n + j)
+  // Scratch.
+  Eigen::VectorXd q_, u_, f_;
+  std::vector<double> k_values_, d_values_;
+};
+
+}  // namespace pbdbench

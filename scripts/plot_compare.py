@@ -1,0 +1,155 @@
+#!/usr/bin/python3
+"""Plots a compare file written by `pbdbench compare` (layout in results/README.md).
+
+    plot_compare.py COMPARE.h5 [-o OUT.png]
+
+Panels, over time: the position error between the run and the reference (RMS and max over the
+particles, log scale); then, for each observable of the scene that the file holds, both runs
+(tip displacement and support force as the norm of the vector, the pendulum angle as is). When
+the scene has no observable, the difference of the total energy (run - reference) takes their
+place. The output format follows the extension of OUT (PNG by default: COMPARE.png).
+Exit codes: 0 written, 1 the image could not be written, 2 not a compare file.
+"""
+import argparse
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import h5py  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+class CompareFileError(Exception):
+    """A compare file that is missing or not one; the message names the path."""
+
+
+def _text(value):
+    return value.decode("utf-8", errors="replace") if isinstance(value, bytes) else value
+
+
+def load(path):
+    """The compare file as a dict: attrs (root attributes), time, position_error_rms/max,
+    series_time, diff (name -> array), observables (name -> array or float)."""
+    if not os.path.isfile(path):
+        raise CompareFileError(f"{path}: no such file")
+    try:
+        with h5py.File(path, "r") as f:
+            if "compare" not in f:
+                raise CompareFileError(f"{path}: not a compare file (no /compare)")
+            g = f["compare"]
+            out = {
+                "attrs": {k: _text(v) for k, v in f.attrs.items()},
+                "time": g["time"][()],
+                "position_error_rms": g["position_error_rms"][()],
+                "position_error_max": g["position_error_max"][()],
+                "series_time": g["series_time"][()],
+                "diff": {k: v[()] for k, v in g["diff"].items()} if "diff" in g else {},
+                "observables": {},
+            }
+            if "observables" in g:
+                for k, v in g["observables"].items():
+                    out["observables"][k] = v[()] if v.shape else float(v[()])
+            return out
+    except (OSError, KeyError) as e:
+        raise CompareFileError(f"{path}: cannot read: {e}") from e
+
+
+def _norm(v):
+    v = np.asarray(v, dtype=float)
+    return np.linalg.norm(v, axis=1) if v.ndim == 2 else v
+
+
+def _finite(*arrays):
+    return any(np.isfinite(np.asarray(a, dtype=float)).any() for a in arrays)
+
+
+def _nan_label(label, values):
+    return label if _finite(values) else label + ": NaN throughout"
+
+
+def panels(data):
+    """The panels to draw: (title, ylabel, log, [(label, x, y, style)])."""
+    attrs = data["attrs"]
+    run = f"run ({attrs.get('run_solver', '?')})"
+    ref = f"reference ({attrs.get('reference_solver', '?')})"
+    out = []
+    t = data["time"]
+    curves = []
+    for key, label, style in (("position_error_rms", "RMS over particles", "-"),
+                              ("position_error_max", "max over particles", "--")):
+        y = np.asarray(data[key], dtype=float)
+        y = np.where(y > 0, y, np.nan)  # a log scale cannot show 0 (identical positions)
+        curves.append((label, t, y, style))
+    out.append(("position error |x_run - x_reference|", "m", True, curves))
+
+    obs = data["observables"]
+    ts = data["series_time"]
+    for name, title, unit in (("tip_displacement", "|tip displacement|", "m"),
+                              ("support_force", "|support force|", "N")):
+        a, b = obs.get(name + "_run"), obs.get(name + "_reference")
+        if a is not None and b is not None and _finite(a, b):
+            out.append((title, unit, False, [(_nan_label(run, a), ts, _norm(a), "-"),
+                                             (_nan_label(ref, b), ts, _norm(b), "--")]))
+    a, b = obs.get("pendulum_angle_run"), obs.get("pendulum_angle_reference")
+    if a is not None and b is not None and _finite(a, b):
+        title = "pendulum angle"
+        pr, pf = obs.get("pendulum_period_run"), obs.get("pendulum_period_reference")
+        if pr is not None and pf is not None:
+            title += f" (periods: run {pr:.4g} s, reference {pf:.4g} s)"
+        out.append((title, "rad", False, [(_nan_label(run, a), ts, a, "-"),
+                                          (_nan_label(ref, b), ts, b, "--")]))
+    if len(out) == 1 and "total_energy" in data["diff"] and _finite(data["diff"]["total_energy"]):
+        out.append(("total energy, run - reference", "J", False,
+                    [("difference", ts, data["diff"]["total_energy"], "-")]))
+    return out
+
+
+def plot(data, out_path, title=None):
+    chosen = panels(data)
+    fig, axes = plt.subplots(len(chosen), 1, figsize=(8, 2.8 * len(chosen) + 0.6), sharex=True,
+                             squeeze=False)
+    for ax, (name, unit, log, curves) in zip(axes[:, 0], chosen):
+        for label, x, y, style in curves:
+            ax.plot(x, y, style, label=label)
+        if log and _finite(*[c[2] for c in curves]):
+            ax.set_yscale("log")
+        ax.set_title(name, fontsize=10)
+        ax.set_ylabel(f"[{unit}]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[-1, 0].set_xlabel("time [s]")
+    attrs = data["attrs"]
+    fig.suptitle(title or "{} vs {}: {}".format(attrs.get("run_solver", "?"),
+                                                attrs.get("reference_solver", "?"),
+                                                attrs.get("run_scenario", "")), fontsize=11)
+    fig.tight_layout()
+    fig.savefig(out_path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("compare", help="compare file written by pbdbench compare --out")
+    parser.add_argument("-o", "--out", help="output image (default: COMPARE with .png)")
+    parser.add_argument("--title", help="figure title")
+    args = parser.parse_args(argv)
+    try:
+        data = load(args.compare)
+    except CompareFileError as e:
+        print(f"plot_compare.py: {e}", file=sys.stderr)
+        return 2
+    out = args.out or os.path.splitext(args.compare)[0] + ".png"
+    try:
+        plot(data, out, args.title)
+    except (OSError, ValueError) as e:
+        print(f"plot_compare.py: cannot write {out}: {e}", file=sys.stderr)
+        return 1
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
