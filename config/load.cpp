@@ -748,6 +748,8 @@ void set_solver_option(SolverOptions& o, const std::string& path, const Value& v
   else if (path == "solver.seed.fixes") o.seed_fixes = std::get<std::vector<std::string>>(value);
   else if (path == "solver.ref.rtol") o.ref_rtol = number();
   else if (path == "solver.ref.atol") o.ref_atol = number();
+  else if (path == "solver.ref.atol_velocity") o.ref_atol_velocity = number();
+  else if (path == "solver.ref.linear_solver") o.ref_linear_solver = std::get<std::string>(value);
   else if (path == "solver.ref.max_steps") o.ref_max_steps = static_cast<long>(whole());
   else if (path == "solver.ref.max_newton") o.ref_max_newton = static_cast<int>(whole());
   else if (path == "solver.ref.ignore_colliders") o.ref_ignore_colliders = flag();

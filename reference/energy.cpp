@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -93,67 +94,131 @@ Mat12 volume_hessian(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3&
   return expand_edge_hessian(Hy);
 }
 
-// Dihedral angle theta = acos(d), d = n1 . n2, n_k = c_k / l_k, c1 = e x a, c2 = e x b with
-// e = x1 - x0, a = x2 - x0, b = x3 - x0 (Mueller et al. 2007, appendix A; the gradient of
-// eval_bending in core/constraint_functions.cpp). Exact second derivatives by the chain rule:
-//   d d/dc1 = g1 = P1 n2 / l1,  P1 = I - n1 n1^T (and 1 <-> 2),
-//   d2d/dc1^2   = -(n1 (P1 n2)^T + (P1 n2) n1^T + d P1) / l1^2,
-//   d2d/dc1 dc2 = P1 P2 / (l1 l2),
-//   dc1/de = -[a]x, dc1/da = [e]x, dc2/de = -[b]x, dc2/db = [e]x (J, 6 x 9), and the bilinear
-//   cross products add d2(g1 . c1)/de da = -[g1]x, d2(g2 . c2)/de db = -[g2]x (transposes below
-//   the diagonal), so over y = (e, a, b): hess d = J^T Hc J + those blocks.
-//   grad theta = -grad d / s,   hess theta = -hess d / s - d grad d grad d^T / s^3,
-//   s = sqrt(1 - d^2).
-// Returns false where eval_bending reports valid = false (the same tests): there the gradient is
-// undefined.
-bool bending_derivatives(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,
-                         Vec12& grad, Mat12& hess) {
+// The bending term, C = theta - rest with theta the dihedral angle acos(n1 . n2) in [0, pi] of
+// eval_bending (Mueller et al. 2007, appendix A): n_k = c_k / l_k, l_k = |c_k|, c1 = e x a,
+// c2 = e x b, e = x1 - x0, a = x2 - x0, b = x3 - x0; a flat hinge has theta = pi. The derivatives
+// of acos(n1 . n2) carry 1 / sin(theta), singular at flat, where cloth rests; here theta is written
+// through a signed angle that is smooth there:
+//   phi = signed angle from n1 to -n2 about u = e / |e|
+//       = atan2((n1 x (-n2)) . u, n1 . (-n2)) = atan2(-|e| V, -c1 . c2),  V = e . (a x b)
+//   (c1 x c2 = V e), in (-pi, pi];  theta = pi - |phi|,  C = pi - |phi| - rest.
+// phi = 0 at flat, where it is smooth; its branch cut (phi = +-pi) is the fully closed hinge
+// theta = 0 (the wings folded onto each other), where phi jumps by 2 pi but grad phi and
+// hess phi stay smooth. sign(phi) = -sign(V).
+//   grad C = -s grad phi,  s = sign(phi),
+//   hess (C^2 / 2) = grad phi grad phi^T - C s hess phi.
+// With rest = pi, C = -|phi| and this is grad phi grad phi^T + phi hess phi: smooth through flat
+// (the gradient C grad C = phi grad phi vanishes there). With rest < pi, C^2 has a kink at flat
+// (an unsigned angle's property: both ways out of flat decrease theta); there, and at the closed
+// hinge for rest > 0, the values are one-sided: s = +1 at phi = 0 (-1 at phi = -0), and atan2's
+// side at phi = +-pi.
+//
+// grad phi. Moving x2 by h1 delta along n1 (h1 = l1 / |e|, the distance of x2 from the hinge
+// line) turns wing 1, hence n1, by delta about u, so the angle from n1 to -n2 drops by delta;
+// likewise for x3 with the opposite sign. Over y = (e, a, b) (x0 fixed; grad_x0 = -(sum)):
+//   d phi/da = g_a = -|e| c1 / l1^2 = -n1 / h1,   d phi/db = g_b = |e| c2 / l2^2 = n2 / h2,
+//   d phi/de = g_e = -t1 g_a - t2 g_b,   t1 = (a . e) / |e|^2, t2 = (b . e) / |e|^2
+// (t_k: where the wing vertex projects on the hinge, 0 at x0, 1 at x1). g_e follows from the
+// invariances of phi: rotating everything, e x g_e + a x g_a + b x g_b = 0 fixes the part of g_e
+// normal to e ((a - t1 e) x g_a = -u and (b - t2 e) x g_b = u cancel), and scaling about x0,
+// e . g_e + a . g_a + b . g_b = 0 with a . g_a = b . g_b = 0 makes e . g_e = 0 (the closed form of
+// Bridson et al. 2003 and Tamstorf & Grinspun 2013, written over the edge vectors).
+// hess phi, row blocks d g_a/dy, d g_b/dy, d g_e/dy, with d(c / |c|^2)/dc = (I - 2 n n^T) / |c|^2,
+// dc1/de = -[a]x, dc1/da = [e]x, dc2/de = -[b]x, dc2/db = [e]x, d|e|/de = u^T:
+//   d g_a/de = -n1 u^T / l1 + k1 R1 [a]x,   d g_a/da = -k1 R1 [e]x,   d g_a/db = 0,
+//   d g_b/de =  n2 u^T / l2 - k2 R2 [b]x,   d g_b/db =  k2 R2 [e]x,   d g_b/da = 0,
+//   k_k = |e| / l_k^2, R_k = I - 2 n_k n_k^T,
+//   d g_e/dy = -g_a grad t1^T - t1 d g_a/dy - g_b grad t2^T - t2 d g_b/dy,
+//   grad t1 = ((a - 2 t1 e) / |e|^2, e / |e|^2, 0), grad t2 = ((b - 2 t2 e) / |e|^2, 0, e / |e|^2).
+// Every factor is bounded while l1, l2 > 0: no 1 / sin(theta) anywhere. The 9 x 9 over y is
+// symmetric up to rounding (symmetrized) and expanded to (x0, x1, x2, x3) as the others.
+//
+// The PBD side (eval_bending, dihedral_angle) keeps acos(n1 . n2): it agrees with pi - |phi| up
+// to the rounding of acos near d = n1 . n2 = -1, ~eps / sqrt(2 (1 + d)) = eps / (pi - theta)
+// (measured in test_energy.cpp, BendingAngleAgreesWithTheAcosFormUpToItsRounding, 200 hinges
+// each: at most 2.5e-12 rad at 1e-4 rad from flat, 2.9e-10 at 1e-6, 1.6e-8 at 1e-8, where acos
+// can only return pi or pi - 1.5e-8; 1e-15 at 0.3). pi - |phi| stays within 1.1e-15 rad of the
+// angle the hinges were built with at every distance. Near flat, phi itself carries an absolute
+// rounding of ~eps (the triple product e . (a x b) cancels), as any angle computed from rounded
+// positions does.
+//
+// Returns false for a degenerate wing (l1 = 0 or l2 = 0, |e| = 0 included): no normal, phi and
+// its derivatives undefined (eval_bending reports valid = false there too). grad and hess are
+// optional (null: not computed).
+bool signed_dihedral(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3, double& phi,
+                     Vec12* grad, Mat12* hess) {
   const Vec3 e = x1 - x0, a = x2 - x0, b = x3 - x0;
   const Vec3 c1 = e.cross(a), c2 = e.cross(b);
-  const double l1 = c1.norm(), l2 = c2.norm();
-  if (!(l1 > 0.0) || !(l2 > 0.0)) return false;
-  const Vec3 n1 = c1 / l1, n2 = c2 / l2;
-  const double d_raw = n1.dot(n2);
-  const double d = std::clamp(d_raw, -1.0, 1.0);
-  const double s2 = 1.0 - d * d;
-  if (s2 < 1e-12) return false;
-  const double s = std::sqrt(s2);
+  const double l1sq = c1.squaredNorm(), l2sq = c2.squaredNorm();
+  if (!(l1sq > 0.0) || !(l2sq > 0.0)) return false;
+  const double le2 = e.squaredNorm(), le = std::sqrt(le2);
+  phi = std::atan2(-le * e.dot(a.cross(b)), -c1.dot(c2));
+  if (!grad && !hess) return true;
 
-  const Mat3 P1 = Mat3::Identity() - n1 * n1.transpose();
-  const Mat3 P2 = Mat3::Identity() - n2 * n2.transpose();
-  const Vec3 p12 = n2 - n1 * d_raw;  // P1 n2
-  const Vec3 p21 = n1 - n2 * d_raw;  // P2 n1
-  const Vec3 g1 = p12 / l1, g2 = p21 / l2;
+  const double k1 = le / l1sq, k2 = le / l2sq;
+  const Vec3 ga = -k1 * c1, gb = k2 * c2;
+  const double t1 = a.dot(e) / le2, t2 = b.dot(e) / le2;
+  const Vec3 ge = -t1 * ga - t2 * gb;
+  if (grad) {
+    grad->segment<3>(3) = ge;
+    grad->segment<3>(6) = ga;
+    grad->segment<3>(9) = gb;
+    grad->segment<3>(0) = -(ge + ga + gb);
+  }
+  if (!hess) return true;
 
-  Eigen::Matrix<double, 6, 6> Hc;
-  Hc.block<3, 3>(0, 0) = -(n1 * p12.transpose() + p12 * n1.transpose() + d_raw * P1) / (l1 * l1);
-  Hc.block<3, 3>(3, 3) = -(n2 * p21.transpose() + p21 * n2.transpose() + d_raw * P2) / (l2 * l2);
-  Hc.block<3, 3>(0, 3) = P1 * P2 / (l1 * l2);
-  Hc.block<3, 3>(3, 0) = Hc.block<3, 3>(0, 3).transpose();
-
+  const double l1 = std::sqrt(l1sq), l2 = std::sqrt(l2sq);
+  const Vec3 n1 = c1 / l1, n2 = c2 / l2, u = e / le;
+  const Mat3 R1 = Mat3::Identity() - 2.0 * n1 * n1.transpose();
+  const Mat3 R2 = Mat3::Identity() - 2.0 * n2 * n2.transpose();
   const Mat3 ex = cross_matrix(e);
-  Eigen::Matrix<double, 6, 9> J = Eigen::Matrix<double, 6, 9>::Zero();
-  J.block<3, 3>(0, 0) = -cross_matrix(a);
-  J.block<3, 3>(0, 3) = ex;
-  J.block<3, 3>(3, 0) = -cross_matrix(b);
-  J.block<3, 3>(3, 6) = ex;
-
-  Eigen::Matrix<double, 6, 1> gc;
-  gc << g1, g2;
-  const Vec9 gd = J.transpose() * gc;  // grad d over (e, a, b)
-  Mat9 Hd = J.transpose() * Hc * J;
-  const Mat3 g1x = cross_matrix(g1), g2x = cross_matrix(g2);
-  Hd.block<3, 3>(0, 3) -= g1x;
-  Hd.block<3, 3>(3, 0) += g1x;
-  Hd.block<3, 3>(0, 6) -= g2x;
-  Hd.block<3, 3>(6, 0) += g2x;
-
-  const Mat9 Hy = -Hd / s - (d / (s2 * s)) * (gd * gd.transpose());
-  const Vec9 gy = -gd / s;
-  grad.segment<9>(3) = gy;
-  grad.segment<3>(0) = -(gy.segment<3>(0) + gy.segment<3>(3) + gy.segment<3>(6));
-  hess = expand_edge_hessian(Hy);
+  // Rows: d g_a/dy and d g_b/dy (9 columns over (e, a, b)).
+  Eigen::Matrix<double, 3, 9> Da = Eigen::Matrix<double, 3, 9>::Zero();
+  Eigen::Matrix<double, 3, 9> Db = Eigen::Matrix<double, 3, 9>::Zero();
+  Da.block<3, 3>(0, 0) = -n1 * u.transpose() / l1 + k1 * R1 * cross_matrix(a);
+  Da.block<3, 3>(0, 3) = -k1 * R1 * ex;
+  Db.block<3, 3>(0, 0) = n2 * u.transpose() / l2 - k2 * R2 * cross_matrix(b);
+  Db.block<3, 3>(0, 6) = k2 * R2 * ex;
+  Vec9 dt1 = Vec9::Zero(), dt2 = Vec9::Zero();
+  dt1.segment<3>(0) = (a - 2.0 * t1 * e) / le2;
+  dt1.segment<3>(3) = e / le2;
+  dt2.segment<3>(0) = (b - 2.0 * t2 * e) / le2;
+  dt2.segment<3>(6) = e / le2;
+  Mat9 Hy;
+  Hy.block<3, 9>(0, 0) = -ga * dt1.transpose() - t1 * Da - gb * dt2.transpose() - t2 * Db;
+  Hy.block<3, 9>(3, 0) = Da;
+  Hy.block<3, 9>(6, 0) = Db;
+  *hess = expand_edge_hessian(0.5 * (Hy + Hy.transpose()));
   return true;
+}
+
+// The bending term's C (energy: the accurate angle pi - |phi|, not acos), and optionally
+// grad C = -s grad phi and the Hessian of C^2 / 2, grad phi grad phi^T - C s hess phi (see
+// signed_dihedral). A degenerate wing reports the angle as 0 (C = -rest) and valid = false, as
+// eval_bending does.
+struct BendingTerm {
+  double C = 0.0;
+  bool valid = true;
+};
+
+BendingTerm bending_term(const Constraint& c, const Points& x, Vec12* grad_C, Mat12* hess_half_C2) {
+  const auto& p = c.particles;
+  const Vec3 x0 = x.row(p[0]), x1 = x.row(p[1]), x2 = x.row(p[2]), x3 = x.row(p[3]);
+  BendingTerm t;
+  double phi = 0.0;
+  Vec12 gphi;
+  Mat12 hphi;
+  if (!signed_dihedral(x0, x1, x2, x3, phi, grad_C || hess_half_C2 ? &gphi : nullptr,
+                       hess_half_C2 ? &hphi : nullptr)) {
+    t.C = -c.rest;
+    t.valid = false;
+    return t;
+  }
+  t.C = (std::numbers::pi - c.rest) - std::abs(phi);  // exactly -|phi| for rest = pi (as a double)
+  const double s = std::signbit(phi) ? -1.0 : 1.0;
+  if (grad_C) *grad_C = -s * gphi;
+  if (hess_half_C2) *hess_half_C2 = gphi * gphi.transpose() - (t.C * s) * hphi;
+  return t;
 }
 
 // Projection of a symmetric matrix onto the positive semi-definite cone.
@@ -420,7 +485,8 @@ double EnergyModel::energy(const Points& x) const {
   double U = 0.0;
   for (int j : compliant_) {
     const Constraint& c = model.constraints[static_cast<size_t>(j)];
-    const double C = eval_constraint(c, x).C;
+    const double C = c.kind == ConstraintKind::Bending ? bending_term(c, x, nullptr, nullptr).C
+                                                       : eval_constraint(c, x).C;
     U += C * C / (2.0 * c.compliance);
   }
   for (const FemElement& e : model.elements) U += fem::element_energy(e, x);
@@ -436,6 +502,17 @@ void EnergyModel::gradient(const Points& x, Eigen::VectorXd& g) const {
   g.setZero(dofs());
   for (int j : compliant_) {
     const Constraint& c = model.constraints[static_cast<size_t>(j)];
+    if (c.kind == ConstraintKind::Bending) {  // the smooth form, see signed_dihedral
+      Vec12 gC;
+      const BendingTerm bt = bending_term(c, x, &gC, nullptr);
+      if (!bt.valid) continue;
+      const double f = bt.C / c.compliance;
+      for (int i = 0; i < 4; ++i) {
+        const int d = particle_dof_[static_cast<size_t>(c.particles[static_cast<size_t>(i)])];
+        if (d >= 0) g.segment<3>(3 * d) += f * gC.segment<3>(3 * i);
+      }
+      continue;
+    }
     const ConstraintEval ev = eval_constraint(c, x);
     if (!ev.valid) continue;
     const double f = ev.C / c.compliance;
@@ -499,12 +576,10 @@ void EnergyModel::hessian(const Points& x, std::vector<double>& values, bool pro
         break;
       }
       case ConstraintKind::Bending: {
-        const Vec3 x0 = x.row(p[0]), x1 = x.row(p[1]), x2 = x.row(p[2]), x3 = x.row(p[3]);
-        Vec12 g;
-        Mat12 hc;
-        if (!bending_derivatives(x0, x1, x2, x3, g, hc)) continue;
-        const double C = dihedral_angle(x0, x1, x2, x3) - c.rest;
-        Mat12 H = inv_alpha * (g * g.transpose() + C * hc);
+        // (grad phi grad phi^T - C s hess phi) / alpha, see signed_dihedral: defined at flat.
+        Mat12 H;
+        if (!bending_term(c, x, nullptr, &H).valid) continue;
+        H *= inv_alpha;
         if (project) project_psd<12>(H);
         scatter<4>(H, slots, dof, cs, out);
         break;

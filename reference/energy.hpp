@@ -40,9 +40,12 @@ class EnergyModel {
  public:
   // Keeps a pointer to `model`, which must outlive this object. Throws std::invalid_argument
   // naming the constraint or element when the model has something U cannot express.
-  // (Mueller's bending constraint uses the unsigned angle: C^2 has a kink at a flat hinge unless
-  // its rest angle is pi, and at a fully folded one unless it is 0; there the gradient of C is
-  // undefined and the term contributes nothing.)
+  // (Mueller et al. 2007's bending constraint uses the unsigned angle theta in [0, pi]; U writes
+  // it as pi - |phi| with phi a signed angle smooth at flat (reference/energy.cpp,
+  // signed_dihedral), so a flat hinge with rest angle pi has a smooth term. C^2 has a kink at a
+  // flat hinge unless its rest angle is pi, and at a fully folded one unless it is 0: there the
+  // gradient and Hessian take one-sided values. A hinge with a degenerate wing has no angle: its
+  // term contributes its energy with the angle taken as 0, and no gradient or Hessian.)
   explicit EnergyModel(const Model& model);
 
   int dofs() const { return static_cast<int>(dof_particle_.size()) * 3; }

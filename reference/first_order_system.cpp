@@ -24,6 +24,8 @@ FirstOrderSystem::FirstOrderSystem(const MechanicalSystem& system)
   d_slot_.assign(nnz, -1);
   entry_row_.assign(nnz, -1);
   identity_slot_.assign(static_cast<size_t>(n_), -1);
+  q_diag_slot_.assign(static_cast<size_t>(n_), -1);
+  u_diag_slot_.assign(static_cast<size_t>(n_), -1);
 
   const sunindextype n = n_;
   pattern_.rows = pattern_.cols = 2 * n;
@@ -33,6 +35,7 @@ FirstOrderSystem::FirstOrderSystem(const MechanicalSystem& system)
   // Columns 0..n-1: d/dq_j.
   for (sunindextype j = 0; j < n; ++j) {
     pattern_.column_start[static_cast<size_t>(j)] = pattern_.nnz();
+    q_diag_slot_[static_cast<size_t>(j)] = pattern_.nnz();
     pattern_.row.push_back(j);  // (j, j): the zero block's diagonal
     for (auto p = sp.column_start[static_cast<size_t>(j)];
          p < sp.column_start[static_cast<size_t>(j) + 1]; ++p) {
@@ -58,6 +61,7 @@ FirstOrderSystem::FirstOrderSystem(const MechanicalSystem& system)
     }
   }
   pattern_.column_start[static_cast<size_t>(2 * n)] = pattern_.nnz();
+  for (sunindextype j = 0; j < n; ++j) u_diag_slot_[static_cast<size_t>(j)] = pattern_.find(n + j, n + j);
   if (!pattern_.has_full_diagonal())
     throw std::invalid_argument(
         "FirstOrderSystem: the system's pattern lacks a diagonal entry (MechanicalSystem::pattern "

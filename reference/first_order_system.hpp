@@ -36,6 +36,17 @@ class FirstOrderSystem {
   void jacobian(double t, const double* y, double* values);
   const sun::CscPattern& jacobian_pattern() const { return pattern_; }
 
+  // Where J's blocks sit in jacobian_pattern(), for a linear solver that works on the n x n
+  // blocks of I - gamma J (ReducedLinearSolver): for entry p of system().pattern() (row i,
+  // column j), the slot of (n + i, j) (-K_ij / m_i) and of (n + i, n + j) (-D_ij / m_i; -1
+  // without damping); for each j, the slots of (j, j) (the explicit zero of the position
+  // block), (j, n + j) (the identity block) and (n + j, n + j).
+  const std::vector<sunindextype>& stiffness_slots() const { return k_slot_; }
+  const std::vector<sunindextype>& damping_slots() const { return d_slot_; }
+  const std::vector<sunindextype>& position_diagonal_slots() const { return q_diag_slot_; }
+  const std::vector<sunindextype>& identity_slots() const { return identity_slot_; }
+  const std::vector<sunindextype>& velocity_diagonal_slots() const { return u_diag_slot_; }
+
   // y = [q; u] and back.
   void pack(const Eigen::VectorXd& q, const Eigen::VectorXd& u, double* y) const;
   void unpack(const double* y, Eigen::VectorXd& q, Eigen::VectorXd& u) const;
@@ -52,6 +63,8 @@ class FirstOrderSystem {
   std::vector<sunindextype> k_slot_, d_slot_;
   std::vector<int> entry_row_;
   std::vector<sunindextype> identity_slot_;  // (n) slot of (j, n + j)
+  std::vector<sunindextype> q_diag_slot_;    // (n) slot of (j, j)
+  std::vector<sunindextype> u_diag_slot_;    // (n) slot of (n + j, n + j)
   // Scratch.
   Eigen::VectorXd q_, u_, f_;
   std::vector<double> k_values_, d_values_;

@@ -28,8 +28,13 @@ struct BdfIntegrator::Impl {
         breakpoints(std::move(breaks)),
         y(fos.size(), ctx),
         J(fos.jacobian_pattern(), ctx),
-        klu(y, J, ctx) {
+        linear(s.linear_solver, fos, y, J, ctx),
+        atol(fos.size(), ctx) {
     std::sort(breakpoints.begin(), breakpoints.end());
+    auto a = atol.map();
+    a.head(fos.dofs()).setConstant(settings.atol);
+    a.tail(fos.dofs()).setConstant(settings.atol_velocity > 0.0 ? settings.atol_velocity
+                                                                : settings.atol);
   }
 
   static int rhs(sunrealtype t, N_Vector yv, N_Vector ydot, void* data) {
@@ -49,7 +54,7 @@ struct BdfIntegrator::Impl {
                  N_Vector, N_Vector) {
     auto* self = static_cast<Impl*>(data);
     try {
-      sun::ScopedTimer timer(self->klu.stats().seconds);
+      sun::ScopedTimer timer(self->linear.stats().seconds);
       sun::write_pattern(Jm, self->fos.jacobian_pattern());
       self->fos.jacobian(t, N_VGetArrayPointer(yv), SUNSparseMatrix_Data(Jm));
       return 0;
@@ -81,11 +86,11 @@ struct BdfIntegrator::Impl {
     check(CVodeSetErrHandlerFn(mem, &sun::ErrorLog::handler, &log), "CVodeSetErrHandlerFn",
           Flags::Cvode);
     check(CVodeInit(mem, &Impl::rhs, t0, y), "CVodeInit", Flags::Cvode);
-    check(CVodeSStolerances(mem, settings.rtol, settings.atol), "CVodeSStolerances", Flags::Cvode);
+    check(CVodeSVtolerances(mem, settings.rtol, atol), "CVodeSVtolerances", Flags::Cvode);
     check(CVodeSetUserData(mem, this), "CVodeSetUserData", Flags::Cvode);
     check(CVodeSetMaxNumSteps(mem, settings.max_steps), "CVodeSetMaxNumSteps", Flags::Cvode);
     check(CVodeSetMaxOrd(mem, settings.max_order), "CVodeSetMaxOrd", Flags::Cvode);
-    check(CVodeSetLinearSolver(mem, klu, J), "CVodeSetLinearSolver", Flags::CvodeLs);
+    check(CVodeSetLinearSolver(mem, linear.get(), J), "CVodeSetLinearSolver", Flags::CvodeLs);
     check(CVodeSetJacFn(mem, &Impl::jac), "CVodeSetJacFn", Flags::CvodeLs);
   }
 
@@ -134,7 +139,8 @@ struct BdfIntegrator::Impl {
   std::vector<double> breakpoints;
   sun::Vector y;
   sun::SparseMatrix J;
-  sun::TimedKlu klu;
+  NewtonLinearSolver linear;
+  sun::Vector atol;  // (2n) absolute tolerances: positions (atol), velocities (atol_velocity)
   sun::Memory mem;
   sun::ErrorLog log;
   std::exception_ptr error;
@@ -147,6 +153,8 @@ BdfIntegrator::BdfIntegrator(const MechanicalSystem& system, const BdfSettings& 
                              std::vector<double> breakpoints) {
   if (!(settings.rtol > 0.0) || !(settings.atol > 0.0))
     throw std::invalid_argument("BdfIntegrator: rtol and atol must be > 0");
+  if (!(settings.atol_velocity >= 0.0) || !std::isfinite(settings.atol_velocity))
+    throw std::invalid_argument("BdfIntegrator: atol_velocity must be >= 0 (0: atol)");
   if (settings.max_steps < 1)
     throw std::invalid_argument("BdfIntegrator: max_steps must be >= 1");
   if (settings.max_order < 1 || settings.max_order > 5)
@@ -197,8 +205,7 @@ sun::Counters BdfIntegrator::counters() const {
   const Impl& m = *impl_;
   sun::Counters c = m.before_restarts;
   c += m.package_counters();
-  c.linear_solves = m.klu.stats().solves;
-  c.time_linear = m.klu.stats().seconds;
+  m.linear.write_counters(c);
   return c;
 }
 
@@ -213,7 +220,9 @@ class RefBdf final : public Solver {
       : scene_(model) {
     if (scene_.dofs() > 0)
       bdf_ = std::make_unique<BdfIntegrator>(
-          scene_.system(), BdfSettings{options.ref_rtol, options.ref_atol, options.ref_max_steps, 5},
+          scene_.system(),
+          BdfSettings{options.ref_rtol, options.ref_atol, options.ref_max_steps, 5,
+                      options.ref_atol_velocity, linear_solver_kind(options)},
           motion_breakpoints(model));
   }
 

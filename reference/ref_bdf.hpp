@@ -1,6 +1,8 @@
 // ref-bdf's integrator: CVODE's variable-order, variable-step BDF method (orders 1 to
 // max_order) on the first-order form of a MechanicalSystem (reference/first_order_system.hpp),
-// Newton iterations on the analytic sparse Jacobian with KLU. docs/reference.md, "ref-bdf".
+// Newton iterations on the analytic sparse Jacobian, solved through the n x n reduced matrix
+// M + gamma D + gamma^2 K (reference/reduced_linear_solver.hpp) or with KLU on the whole 2n x 2n
+// matrix. docs/reference.md, "ref-bdf".
 //
 //   BdfIntegrator bdf(system, settings);
 //   bdf.reset(t0, q, u);               // CVodeInit / CVodeReInit
@@ -19,15 +21,19 @@
 #include <Eigen/Core>
 
 #include "reference/mechanical_system.hpp"
+#include "reference/reduced_linear_solver.hpp"
 #include "reference/sundials_support.hpp"
 
 namespace pbdbench {
 
 struct BdfSettings {
-  double rtol = 1e-8;        // relative tolerance (CVodeSStolerances), > 0
-  double atol = 1e-10;       // absolute tolerance, m for q and m/s for u (one scalar), > 0
+  double rtol = 1e-8;        // relative tolerance (CVodeSVtolerances), > 0
+  double atol = 1e-10;       // absolute tolerance of the positions q, m, > 0
   long max_steps = 1000000;  // internal steps per call to CVode (CVodeSetMaxNumSteps), >= 1
   int max_order = 5;         // highest BDF order (CVodeSetMaxOrd), 1 to 5
+  double atol_velocity = 0.0;  // absolute tolerance of the velocities u, m/s, >= 0; 0: atol
+                               // (one scalar for both, as with CVodeSStolerances)
+  LinearSolverKind linear_solver = LinearSolverKind::Reduced;  // the Newton systems' solver
 };
 
 class BdfIntegrator {

@@ -51,6 +51,14 @@ void check_reference_model(const std::string& solver, const Model& model,
   }
 }
 
+LinearSolverKind linear_solver_kind(const SolverOptions& options) {
+  LinearSolverKind kind{};
+  if (!parse_linear_solver_kind(options.ref_linear_solver, kind))
+    throw std::invalid_argument("solver.ref.linear_solver: unknown linear solver '" +
+                                options.ref_linear_solver + "' (reduced or full)");
+  return kind;
+}
+
 std::vector<double> motion_breakpoints(const Model& model) {
   std::vector<double> t;
   for (const Attachment& a : model.attachments) {
@@ -78,6 +86,8 @@ void add_counters(StepReport& report, const sun::Counters& d) {
   report.linear_solves += d.linear_solves;
   report.error_test_failures += d.error_test_failures;
   report.convergence_failures += d.convergence_failures;
+  report.cholesky_factorizations += d.cholesky_factorizations;
+  report.lu_factorizations += d.lu_factorizations;
   report.time_linear += d.time_linear;
 }
 

@@ -11,6 +11,7 @@
 
 #include "core/model.hpp"
 #include "core/state.hpp"
+#include "reference/reduced_linear_solver.hpp"
 #include "reference/scene_system.hpp"
 #include "reference/sundials_support.hpp"
 #include "solvers/options.hpp"
@@ -24,6 +25,9 @@ namespace pbdbench {
 // kind and group.
 void check_reference_model(const std::string& solver, const Model& model,
                            const SolverOptions& options);
+
+// options.ref_linear_solver as a LinearSolverKind (throws std::invalid_argument when unknown).
+LinearSolverKind linear_solver_kind(const SolverOptions& options);
 
 // The times where the scripted motion of an attached particle is not smooth (sorted, distinct):
 // a Linear motion's start and stop (finite, after the start), an Oscillate or Circle motion's

@@ -1,6 +1,7 @@
 // ref-be and ref-sdirk2: ARKODE ARKStep with a fixed step. docs/reference.md.
 #include "reference/ref_fixed_step.hpp"
 
+#include <cmath>
 #include <exception>
 #include <stdexcept>
 #include <string>
@@ -22,7 +23,96 @@ using sun::Flags;
 struct FixedStepIntegrator::Impl {
   Impl(const MechanicalSystem& system, const FixedStepSettings& s)
       : fos(system), settings(s), y(fos.size(), ctx), J(fos.jacobian_pattern(), ctx),
-        klu(y, J, ctx), newton(y, ctx), atol(fos.size(), ctx) {}
+        linear(s.linear_solver, fos, y, J, ctx), newton(y, ctx), atol(fos.size(), ctx),
+        merit(*this) {
+    // A conservative system's stage is the minimiser of an energy: line search on it, with
+    // definite (shifted) Newton matrices, so every step is a descent step (StageMerit).
+    if (!fos.system().has_damping()) {
+      newton.set_merit(&merit);
+      linear.set_shift_indefinite(true);
+    }
+  }
+
+  // The energy whose minimiser is a stage of the implicit method, for a force f = -grad U (no
+  // damping). ARKODE writes the stage z = [q; u] = zpred + zcor as the root of
+  //   G(zcor) = zcor - gamma F(z) - sdata,  i.e.  z - gamma F(z) = a,  a = zpred + sdata
+  // (gamma = h A_ii; a holds y_n and the earlier stages). Its first block, q - gamma u = a_q, is
+  // linear; on it, u = (q - a_q) / gamma, and the second block, u - gamma M^-1 f(q) = a_u,
+  // becomes M (q - c) / gamma^2 - f(q) = 0 with c = a_q + gamma a_u: the stationarity of
+  //   E(q) = |q - c|_M^2 / (2 gamma^2) + U(t, q),
+  // the implicit stage's incremental potential. project() puts an iterate on the linear block
+  // (u from q); on it, G = [0; gamma M^-1 grad E], and the Newton step from the reduced matrix
+  // S = M + gamma^2 K has d_q = -gamma^2 S^-1 grad E: a descent direction for E when S is
+  // definite, which the shifted factorisation ensures (ReducedLinearSolver). A minimiser of E
+  // is the stage that converged XPBD also seeks (Macklin et al. 2016, eq. 6-8 for backward
+  // Euler).
+  struct StageMerit final : sun::FullNewton::Merit {
+    explicit StageMerit(Impl& owner) : self(owner) {}
+
+    int data(double& t, double*& zpred, double*& sdata, double& gamma) const {
+      N_Vector zp = nullptr, z = nullptr, Fi = nullptr, sd = nullptr;
+      void* user = nullptr;
+      if (ARKStepGetNonlinearSystemData(self.mem, &t, &zp, &z, &Fi, &gamma, &sd, &user) != 0)
+        return -1;
+      zpred = N_VGetArrayPointer(zp);
+      sdata = N_VGetArrayPointer(sd);
+      return gamma > 0.0 ? 0 : -1;
+    }
+
+    int project(N_Vector ycor) override {
+      double t, gamma;
+      double *zp, *sd;
+      if (data(t, zp, sd, gamma) != 0) return -1;
+      const int n = self.fos.dofs();
+      double* yc = N_VGetArrayPointer(ycor);
+      for (int i = 0; i < n; ++i) {
+        const double q = zp[i] + yc[i], aq = zp[i] + sd[i];
+        yc[n + i] = (q - aq) / gamma - zp[n + i];
+      }
+      return 0;
+    }
+
+    // q and c (see above) at ycor.
+    int unpack(N_Vector ycor, double& t, double& gamma) {
+      double *zp, *sd;
+      if (data(t, zp, sd, gamma) != 0) return -1;
+      const int n = self.fos.dofs();
+      const double* yc = N_VGetArrayPointer(ycor);
+      q.resize(n);
+      u.resize(n);
+      c.resize(n);
+      for (int i = 0; i < n; ++i) {
+        q[i] = zp[i] + yc[i];
+        u[i] = zp[n + i] + yc[n + i];
+        c[i] = zp[i] + sd[i] + gamma * (zp[n + i] + sd[n + i]);
+      }
+      return 0;
+    }
+
+    int value(N_Vector ycor, double& energy) override {
+      double t, gamma;
+      if (unpack(ycor, t, gamma) != 0) return -1;
+      const Eigen::VectorXd& m = self.fos.system().mass();
+      energy = 0.5 * (q - c).cwiseAbs2().dot(m) / (gamma * gamma) + self.fos.system().potential(t, q);
+      return std::isfinite(energy) ? 0 : 1;
+    }
+
+    int slope(N_Vector ycor, N_Vector d, double& s) override {
+      double t, gamma;
+      if (unpack(ycor, t, gamma) != 0) return -1;
+      const MechanicalSystem& sys = self.fos.system();
+      sys.force(t, q, u, f);
+      const int n = self.fos.dofs();
+      const double* dv = N_VGetArrayPointer(d);
+      s = 0.0;
+      for (int i = 0; i < n; ++i)
+        s += (sys.mass()[i] * (q[i] - c[i]) / (gamma * gamma) - f[i]) * dv[i];
+      return std::isfinite(s) ? 0 : 1;
+    }
+
+    Impl& self;
+    Eigen::VectorXd q, u, c, f;
+  };
 
   static int rhs(sunrealtype t, N_Vector yv, N_Vector ydot, void* data) {
     auto* self = static_cast<Impl*>(data);
@@ -39,7 +129,7 @@ struct FixedStepIntegrator::Impl {
                  N_Vector, N_Vector) {
     auto* self = static_cast<Impl*>(data);
     try {
-      sun::ScopedTimer timer(self->klu.stats().seconds);
+      sun::ScopedTimer timer(self->linear.stats().seconds);
       sun::write_pattern(Jm, self->fos.jacobian_pattern());
       self->fos.jacobian(t, N_VGetArrayPointer(yv), SUNSparseMatrix_Data(Jm));
       return 0;
@@ -88,7 +178,7 @@ struct FixedStepIntegrator::Impl {
     }
     if (!settings.package_newton)
       check(ARKStepSetNonlinearSolver(mem, newton), "ARKStepSetNonlinearSolver", Flags::Arkode);
-    check(ARKStepSetLinearSolver(mem, klu, J), "ARKStepSetLinearSolver", Flags::ArkodeLs);
+    check(ARKStepSetLinearSolver(mem, linear.get(), J), "ARKStepSetLinearSolver", Flags::ArkodeLs);
     check(ARKStepSetJacFn(mem, &Impl::jac), "ARKStepSetJacFn", Flags::ArkodeLs);
     check(ARKStepSetNonlinConvCoef(mem, settings.nonlinear_coefficient),
           "ARKStepSetNonlinConvCoef", Flags::Arkode);
@@ -116,9 +206,10 @@ struct FixedStepIntegrator::Impl {
   FixedStepSettings settings;
   sun::Vector y;
   sun::SparseMatrix J;
-  sun::TimedKlu klu;
+  NewtonLinearSolver linear;
   sun::FullNewton newton;  // outlives mem
   sun::Vector atol;        // (2n) absolute tolerances: positions, then velocities
+  StageMerit merit;        // used when the system has no damping
   sun::Memory mem;
   sun::ErrorLog log;
   std::exception_ptr error;
@@ -189,8 +280,7 @@ sun::Counters FixedStepIntegrator::counters() const {
   const Impl& m = *impl_;
   sun::Counters c = m.dropped;
   c += m.package_counters();
-  c.linear_solves = m.klu.stats().solves;
-  c.time_linear = m.klu.stats().seconds;
+  m.linear.write_counters(c);
   return c;
 }
 
@@ -207,7 +297,8 @@ class RefFixedStep final : public Solver {
     if (scene_.dofs() > 0)
       integrator_ = std::make_unique<FixedStepIntegrator>(
           scene_.system(), FixedStepSettings{method, options.ref_rtol, options.ref_atol,
-                                             options.ref_max_newton, 0.1, false});
+                                             options.ref_max_newton, 0.1, false,
+                                             linear_solver_kind(options)});
   }
 
   std::string name() const override { return name_; }

@@ -33,6 +33,7 @@
 #include <Eigen/Core>
 
 #include "reference/mechanical_system.hpp"
+#include "reference/reduced_linear_solver.hpp"
 #include "reference/sundials_support.hpp"
 
 namespace pbdbench {
@@ -47,6 +48,7 @@ struct FixedStepSettings {
   double nonlinear_coefficient = 0.1;  // ARKStepSetNonlinConvCoef, in (0, 1]
   bool package_newton = false;         // ARKODE's own Newton solver instead of sun::FullNewton
                                        // (for comparison; it fails where the latter does not)
+  LinearSolverKind linear_solver = LinearSolverKind::Reduced;  // the Newton systems' solver
 };
 
 class FixedStepIntegrator {

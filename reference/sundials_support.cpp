@@ -308,8 +308,12 @@ int FullNewton::solve(SUNNonlinearSolver s, N_Vector, N_Vector ycor, N_Vector w,
   self->cur_iter_ = 0;
   self->solve_iterations_ = 0;
   self->solve_failures_ = 0;
-  int flag = self->sys_(ycor, G, mem);  // residual at the initial iterate
+  Merit* merit = self->merit_;
+  int flag = merit != nullptr ? merit->project(ycor) : 0;
+  if (flag == 0) flag = self->sys_(ycor, G, mem);  // residual at the initial iterate
   double phi = flag == 0 ? N_VWrmsNorm(G, w) : 0.0;
+  double energy = 0.0;
+  if (flag == 0 && merit != nullptr) flag = merit->value(ycor, energy);
   bool setup = call_lsetup != SUNFALSE;  // the package's advice for the first iteration
   bool jbad = false;   // force the Jacobian's evaluation at the next setup
   bool fresh = false;  // the Jacobian in use was evaluated at the current iterate
@@ -333,18 +337,29 @@ int FullNewton::solve(SUNNonlinearSolver s, N_Vector, N_Vector ycor, N_Vector w,
     // and cannot be relied on to decrease.
     const double length = N_VWrmsNorm(d, w);
     const bool small = length <= tol;
-    double alpha = 1.0, phit = 0.0;
+    // With a merit: the energy's slope along d; not a descent direction: the residual norm.
+    double slope = 0.0;
+    if (merit != nullptr && (flag = merit->slope(ycor, d, slope)) < 0) break;
+    flag = 0;
+    const bool on_merit = merit != nullptr && slope < 0.0;
+    double alpha = 1.0, phit = 0.0, energy_t = 0.0;
     bool accepted = false;
     for (int k = 0; k <= kMaxHalvings; ++k, alpha *= 0.5) {
       N_VLinearSum(1.0, ycor, alpha, d, trial);
-      const int f = self->sys_(trial, Gt, mem);
+      int f = on_merit ? merit->project(trial) : 0;
+      if (f == 0) f = self->sys_(trial, Gt, mem);
+      if (f == 0 && merit != nullptr) f = merit->value(trial, energy_t);
       if (f < 0) {
         flag = f;
         break;
       }
       if (f > 0) continue;  // recoverable: a shorter step
       phit = N_VWrmsNorm(Gt, w);
-      if (small || phit <= (1.0 - 1e-4 * alpha) * phi) {
+      // On the merit, a lower residual also passes: near the root the energy's decrease
+      // (~ slope) falls below the round-off of the energy itself.
+      const bool decrease = phit <= (1.0 - 1e-4 * alpha) * phi ||
+                            (on_merit && energy_t <= energy + 1e-4 * alpha * slope);
+      if (small || decrease) {
         accepted = true;
         break;
       }
@@ -354,14 +369,20 @@ int FullNewton::solve(SUNNonlinearSolver s, N_Vector, N_Vector ycor, N_Vector w,
       if (!fresh && self->lsetup_ != nullptr) {  // retry with the Jacobian at this iterate
         setup = jbad = true;
         flag = self->sys_(ycor, G, mem);  // the package's state back at the iterate
+        if (flag == 0 && merit != nullptr) flag = merit->value(ycor, energy);
         continue;
       }
       flag = SUN_NLS_CONV_RECVR;
       break;
     }
+    if (on_merit) {
+      ++self->merit_steps_;
+      N_VLinearSum(1.0, trial, -1.0, ycor, d);  // the step taken, projection included
+    }
     N_VScale(1.0, trial, ycor);
     N_VScale(1.0, Gt, G);
     phi = phit;
+    energy = energy_t;
     fresh = false;
     if (alpha == 1.0) {  // a full Newton step: the package judges convergence
       flag = self->ctest_(s, ycor, d, tol, w, self->ctest_data_);
@@ -456,6 +477,9 @@ Counters& Counters::operator+=(const Counters& o) {
   error_test_failures += o.error_test_failures;
   convergence_failures += o.convergence_failures;
   time_linear += o.time_linear;
+  cholesky_factorizations += o.cholesky_factorizations;
+  lu_factorizations += o.lu_factorizations;
+  not_positive_definite += o.not_positive_definite;
   return *this;
 }
 
@@ -468,6 +492,9 @@ Counters Counters::operator-(const Counters& o) const {
   d.error_test_failures = error_test_failures - o.error_test_failures;
   d.convergence_failures = convergence_failures - o.convergence_failures;
   d.time_linear = time_linear - o.time_linear;
+  d.cholesky_factorizations = cholesky_factorizations - o.cholesky_factorizations;
+  d.lu_factorizations = lu_factorizations - o.lu_factorizations;
+  d.not_positive_definite = not_positive_definite - o.not_positive_definite;
   return d;
 }
 

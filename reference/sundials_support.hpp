@@ -147,12 +147,13 @@ class SparseMatrix {
 // when A is not a CSC matrix of the pattern's shape with room for it.
 void write_pattern(SUNMatrix A, const CscPattern& pattern);
 
-// What a TimedKlu did since it was built (cumulative).
+// What a TimedKlu (or a ReducedLinearSolver, reference/reduced_linear_solver.hpp) did since it
+// was built (cumulative).
 struct LinearSolverStats {
   long setups = 0;       // numeric factorisations (the first is also the symbolic analysis)
   long solves = 0;       // triangular solves with a factorisation
   double seconds = 0.0;  // wall-clock time in setup and solve, plus whatever the owner adds
-                         // with time_into() (its Jacobian callbacks)
+                         // with a ScopedTimer (its Jacobian callbacks)
 };
 
 // The KLU direct solver behind a thin SUNLinearSolver of its own that counts and times setup
@@ -207,6 +208,20 @@ class TimedKlu {
 // step may be longer than the one before it.
 class FullNewton {
  public:
+  // An optional merit function for the line search, for a root that minimises an energy E
+  // (a conservative system's implicit stage: reference/ref_fixed_step.cpp). With one set, each
+  // iterate is first projected (project(): e.g. onto the stage's linear equations), and a step
+  // d is accepted when E(ycor + a d, projected) <= E(ycor) + 1e-4 a slope, slope = grad E . d;
+  // a direction with slope >= 0 (not a descent direction) falls back to the residual norm for
+  // that iteration. Each returns 0 on success, > 0 recoverable, < 0 unrecoverable.
+  class Merit {
+   public:
+    virtual ~Merit() = default;
+    virtual int project(N_Vector ycor) = 0;
+    virtual int value(N_Vector ycor, double& energy) = 0;
+    virtual int slope(N_Vector ycor, N_Vector d, double& slope) = 0;
+  };
+
   FullNewton(N_Vector y_template, SUNContext ctx);
   ~FullNewton();
   FullNewton(const FullNewton&) = delete;
@@ -216,6 +231,9 @@ class FullNewton {
   operator SUNNonlinearSolver() const { return nls_; }  // NOLINT
   long iterations() const { return iterations_; }        // cumulative
   long convergence_failures() const { return failures_; }  // cumulative
+  // nullptr: the residual norm alone. The merit must outlive the solves.
+  void set_merit(Merit* merit) { merit_ = merit; }
+  long merit_steps() const { return merit_steps_; }  // steps accepted on the merit (cumulative)
 
  private:
   static SUNNonlinearSolver_Type type(SUNNonlinearSolver);
@@ -240,6 +258,8 @@ class FullNewton {
   SUNNonlinSolLSolveFn lsolve_ = nullptr;
   SUNNonlinSolConvTestFn ctest_ = nullptr;
   void* ctest_data_ = nullptr;
+  Merit* merit_ = nullptr;
+  long merit_steps_ = 0;
   int max_iters_ = 3;
   int cur_iter_ = 0;
   long iterations_ = 0;        // all solves
@@ -297,6 +317,13 @@ struct Counters {
   long error_test_failures = 0;   // steps rejected by the local error test
   long convergence_failures = 0;  // nonlinear solves that failed to converge
   double time_linear = 0.0;       // s, Jacobian callbacks, factorisations and solves
+  // Which factorisation the linear setups used (SparseFactor, reference/sparse_factor.hpp): the
+  // reduced n x n matrices and the static solve's stiffness. Cholesky attempts that met a pivot
+  // <= 0 are counted in not_positive_definite, whether LU then followed or not. The full-system
+  // KLU path (TimedKlu) counts none of these.
+  long cholesky_factorizations = 0;
+  long lu_factorizations = 0;
+  long not_positive_definite = 0;
 
   Counters& operator+=(const Counters& o);
   Counters operator-(const Counters& o) const;

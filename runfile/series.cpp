@@ -129,6 +129,13 @@ const std::array kSeries = {
                true, PBDBENCH_REPORT(error_test_failures)},
     SeriesSpec{"convergence_failures", "1", "nonlinear solves that did not converge", 1, true,
                PBDBENCH_REPORT(convergence_failures)},
+    SeriesSpec{"cholesky_factorizations", "1",
+               "of the linear setups, Cholesky factorisations of the reduced Newton matrix", 1,
+               true, PBDBENCH_REPORT(cholesky_factorizations)},
+    SeriesSpec{"lu_factorizations", "1",
+               "of the linear setups, LU factorisations (the reduced matrix was indefinite or "
+               "unsymmetric)",
+               1, true, PBDBENCH_REPORT(lu_factorizations)},
     SeriesSpec{"constraint_drift", "mixed",
                "max |C| of the rigid constraints at the end of the step, in their units (ref-dae; "
                "NaN otherwise)",

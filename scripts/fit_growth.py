@@ -3,7 +3,8 @@
 
     fit_growth.py COST.json [--size tets] [--counters newton_iterations,linear_seconds]
 
-For every benchmark family (the name up to its last '/'), takes the median over repetitions of
+For every benchmark family (the name without its size part, e.g. "1536tets", and Google
+Benchmark's iterations/repeats suffixes), takes the median over repetitions of
 the real time and of each counter, and fits log(value) = a + p log(size) by least squares: p is
 the growth exponent (time ~ size^p). Prints a table per family, the fit and the context the
 benchmark recorded (machine, build).
@@ -11,6 +12,7 @@ benchmark recorded (machine, build).
 import argparse
 import json
 import math
+import re
 import sys
 from collections import defaultdict
 
@@ -50,7 +52,10 @@ def main(argv=None):
         if b.get("run_type") == "aggregate":
             continue
         name = b.get("run_name", b["name"])
-        family = name.rsplit("/", 1)[0]
+        # The family: the name without its size and Google Benchmark's own suffixes
+        # ("ref-be/beam/1536tets/iterations:1" -> "ref-be/beam").
+        family = "/".join(p for p in name.split("/")
+                          if not re.fullmatch(r"\d+[a-z]*|(iterations|repeats|threads):\d+", p))
         if args.size not in b:
             continue
         size = b[args.size]

@@ -78,6 +78,10 @@ std::string SolverOptions::validate() const {
     return "solver.ref.rtol = " + std::to_string(ref_rtol) + " is outside (0, 1)";
   if (!(ref_atol > 0.0) || !std::isfinite(ref_atol))
     return out_of_range("solver.ref.atol", ref_atol, "not above", 0.0);
+  if (!(ref_atol_velocity > 0.0) || !std::isfinite(ref_atol_velocity))
+    return out_of_range("solver.ref.atol_velocity", ref_atol_velocity, "not above", 0.0);
+  if (ref_linear_solver != "reduced" && ref_linear_solver != "full")
+    return "solver.ref.linear_solver = '" + ref_linear_solver + "' is not one of reduced, full";
   if (ref_max_steps < 1) return out_of_range("solver.ref.max_steps", ref_max_steps, "below the minimum", 1L);
   if (ref_max_steps > 1000000000L)
     return out_of_range("solver.ref.max_steps", ref_max_steps, "above the maximum", 1000000000L);

@@ -60,7 +60,12 @@ struct SolverOptions {
   // [solver.ref]: the reference integrators (reference/, docs/reference.md).
   double ref_rtol = 1e-8;             // solver.ref.rtol: relative tolerance of the adaptive
                                       // integrators (ref-bdf, ref-dae), and of every Newton solve
-  double ref_atol = 1e-10;            // solver.ref.atol: absolute tolerance, m and m/s
+  double ref_atol = 1e-10;            // solver.ref.atol: absolute tolerance of positions, m
+  double ref_atol_velocity = 1e-8;    // solver.ref.atol_velocity: absolute tolerance of
+                                      // velocities, m/s (ref-bdf)
+  std::string ref_linear_solver = "reduced";  // solver.ref.linear_solver: "reduced" (the n x n
+                                      // Schur complement, Cholesky with an LU fallback) or "full"
+                                      // (KLU on the whole 2n x 2n Newton matrix)
   long ref_max_steps = 1000000;       // solver.ref.max_steps: internal steps per output step
   int ref_max_newton = 50;            // solver.ref.max_newton: Newton iterations per solve
   bool ref_ignore_colliders = false;  // solver.ref.ignore_colliders: run a scene that has

@@ -36,6 +36,9 @@ struct StepReport {
   long linear_solves = 0;         // linear solves with a factorisation
   long error_test_failures = 0;   // steps rejected by the local error test
   long convergence_failures = 0;  // nonlinear solves that failed to converge
+  long cholesky_factorizations = 0;  // of the setups: Cholesky factorisations (reduced systems)
+  long lu_factorizations = 0;        // of the setups: LU factorisations where Cholesky failed or
+                                     // the matrix was not symmetric (reduced systems)
   double constraint_drift = std::numeric_limits<double>::quiet_NaN();  // max |C| of the rigid
                                   // constraints at the end of the step (ref-dae), units of C
   // Wall-clock time per phase, summed over substeps, in seconds.

@@ -206,8 +206,8 @@ TEST(Schema, SolverBoundsAgreeWithValidate) {
   }
   // Both bounds of iterations, substeps, jacobi_relaxation, pbd.velocity_damping, seed.damping,
   // seed.restitution, ref.rtol, ref.max_steps and ref.max_newton; the minimum of contact_margin,
-  // seed.reference_dt and ref.atol.
-  EXPECT_EQ(bounds_checked, 21);
+  // seed.reference_dt, ref.atol and ref.atol_velocity.
+  EXPECT_EQ(bounds_checked, 22);
 }
 
 TEST(Schema, SetSolverOptionRefusesOtherPaths) {

@@ -175,6 +175,7 @@ TEST(RefBdf, KinematicAnchorWithKinksMatchesClosedForm) {
   options.name = "ref-bdf";
   options.ref_rtol = kRtol;
   options.ref_atol = kAtol;
+  options.ref_atol_velocity = kAtol;
   auto solver = make_solver(options, model);
   State state = rest_state(model);
   const double w = 1.0 / std::sqrt(alpha * m);

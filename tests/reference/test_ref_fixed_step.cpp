@@ -313,6 +313,47 @@ TEST(RefBe, StiffChainAtDefaultTolerances) {
   EXPECT_NEAR(stretch, expected, 1e-3 * expected);
 }
 
+// The same chain released at 30 degrees: links go slack and compressed as it falls, the
+// stiffness is indefinite, and a Newton iteration judged on the residual norm stalls (it failed
+// at the first step, at every angle tried from 5 to 30 degrees, before the stage energy became
+// the line search's merit). Each step must now converge and satisfy backward Euler's equations
+//   M (q1 - q0 - h u0) / h^2 = f(t1, q1),   u1 = (q1 - q0) / h
+// to the Newton tolerance, checked here from the states themselves.
+TEST(RefBe, StiffChainReleasedAtAnAngleSatisfiesTheStepEquations) {
+  auto c = test::catalog("hanging_chain", {{"solver.name", "ref-be"}, {"scene.angle_deg", "30"}});
+  const Model& model = c.scene.model;
+  State state = c.scene.initial;
+  auto solver = make_solver(c.options, model);
+  SceneSystem sys(model);
+  const double h = 1.0 / 60.0;
+  double worst = 0.0, worst_u = 0.0;
+  for (int k = 0; k < 120; ++k) {
+    Eigen::VectorXd q0, u0, q1, u1, f;
+    sys.gather(state, q0, u0);
+    const StepReport r = solver->step(model, state, h);
+    ASSERT_EQ(r.convergence_failures, 0) << "step " << k;
+    sys.gather(state, q1, u1);
+    sys.force(state.time, q1, u1, f);
+    const Eigen::VectorXd inertia = sys.mass().cwiseProduct(q1 - q0 - h * u0) / (h * h);
+    // Relative to the largest force term: link tensions of ~200 N against round-off of
+    // alpha^-1 |C| with |C| ~ 1e-6 m.
+    worst = std::max(worst, (inertia - f).cwiseAbs().maxCoeff() / f.cwiseAbs().maxCoeff());
+    worst_u = std::max(worst_u, (u1 - (q1 - q0) / h).cwiseAbs().maxCoeff());
+  }
+  std::printf("[ measured ] largest |M (q1 - q0 - h u0) / h^2 - f| / |f|: %.3g; |u1 - (q1 - q0) / h|: %.3g m/s\n",
+              worst, worst_u);
+  // The Newton iterations stop at rtol 1e-8 on positions: a position error e leaves a force
+  // residual of about e / alpha = 1e8 e N against forces of 1e2 N, so 1e-8 of 2 m gives up to
+  // ~1e-2 relative. Measured above; a step that had not converged (or a wrong stage) is off by
+  // order 1.
+  EXPECT_LT(worst, 1e-2);
+  // u1 - (q1 - q0) / h: the stage's first block is linear, so what is left is the Newton
+  // tolerance on the positions, rtol |q| (2e-8 m here, q ~ 2 m), divided by h: 1.2e-6 m/s.
+  // Measured 2.6e-6; a wrong stage would be off by the velocities themselves (~1 m/s).
+  const double position_tol = c.options.ref_rtol * 2.0 + c.options.ref_atol;
+  EXPECT_LT(worst_u, 10.0 * position_tol / h);
+}
+
 // A stage that cannot converge in the allowed iterations cannot be retried with a smaller
 // fixed step: the error names ARKODE's flag.
 TEST(RefBe, NonConvergenceNamesTheArkodeFlag) {

@@ -139,6 +139,8 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   r.convergence_failures = 40;
   r.constraint_drift = 41.5;
   r.time_linear = 42.5;
+  r.cholesky_factorizations = 50;
+  r.lu_factorizations = 51;
   const SeriesRow row{32.5, 33, 34.5, &s, &r};
 
   const std::map<std::string, std::vector<double>> expected = {
@@ -156,7 +158,8 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"linear_solves", {38}}, {"error_test_failures", {39}}, {"convergence_failures", {40}},
       {"constraint_drift", {41.5}}, {"time_linear", {42.5}},
       {"tip_displacement", {43.5, 44.5, 45.5}}, {"support_force", {46.5, 47.5, 48.5}},
-      {"pendulum_angle", {49.5}}};
+      {"pendulum_angle", {49.5}}, {"cholesky_factorizations", {50}},
+      {"lu_factorizations", {51}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";
