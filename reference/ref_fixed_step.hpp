@@ -1,6 +1,7 @@
 // The fixed-step implicit integrators of ref-be and ref-sdirk2: ARKODE's ARKStep, fully implicit
 // (a diagonally implicit Runge-Kutta table), a fixed step h, Newton iterations on the analytic
-// sparse Jacobian of the first-order system (reference/first_order_system.hpp) with KLU.
+// sparse Jacobian of the first-order system (reference/first_order_system.hpp), solved through
+// the reduced matrix (reference/reduced_linear_solver.hpp) or with KLU on the whole system.
 // docs/reference.md, "ref-be" and "ref-sdirk2".
 //
 //   BackwardEuler  the one-stage table A = [[1]], b = [1], c = [1] (a user Butcher table):
@@ -12,7 +13,8 @@
 //
 // Each stage is solved by sun::FullNewton (reference/sundials_support.hpp) instead of ARKODE's
 // own Newton solver: the Jacobian is re-evaluated where the iteration is slow or had to be damped,
-// and a line search on the residual keeps it from overshooting. ARKODE's solver keeps the
+// and a line search keeps it from overshooting: on the stage's incremental potential when the
+// system has no damping (StageMerit in ref_fixed_step.cpp), else on the residual norm. ARKODE's solver keeps the
 // Jacobian of the predicted state: on a cloth released flat it needs 8 times more iterations
 // (tests/reference/test_ref_fixed_step.cpp), and with a step that cannot be shortened it has
 // no way out where that Jacobian is too far from the solution's.
