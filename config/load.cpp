@@ -753,6 +753,14 @@ void set_solver_option(SolverOptions& o, const std::string& path, const Value& v
   else if (path == "solver.ref.max_steps") o.ref_max_steps = static_cast<long>(whole());
   else if (path == "solver.ref.max_newton") o.ref_max_newton = static_cast<int>(whole());
   else if (path == "solver.ref.ignore_colliders") o.ref_ignore_colliders = flag();
+  else if (path == "solver.global.tolerance") o.global_tolerance = number();
+  else if (path == "solver.global.max_iterations") o.global_max_iterations = static_cast<int>(whole());
+  else if (path == "solver.global.regularization") o.global_regularization = number();
+  else if (path == "solver.global.cg_preconditioner") o.global_cg_preconditioner = std::get<std::string>(value);
+  else if (path == "solver.global.matrix_free") o.global_matrix_free = flag();
+  else if (path == "solver.global.cg_tolerance") o.global_cg_tolerance = number();
+  else if (path == "solver.global.cg_max_iterations") o.global_cg_max_iterations = static_cast<int>(whole());
+  else if (path == "solver.global.ceres_method") o.global_ceres_method = std::get<std::string>(value);
   else throw std::invalid_argument("'" + path + "' is not a solver key");
 }
 

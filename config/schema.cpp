@@ -178,6 +178,14 @@ std::vector<std::string> solver_names() {
   return names;
 }
 
+// "" (no shadow) and the global solvers.
+std::vector<std::string> shadow_solver_names() {
+  std::vector<std::string> names = {""};
+  for (const SolverInfo& s : solver_catalog())
+    if (s.name.rfind("global-", 0) == 0) names.push_back(s.name);
+  return names;
+}
+
 std::vector<std::string> order_names() {
   std::vector<std::string> names;
   for (int i = 0; i < 5; ++i) names.emplace_back(to_string(static_cast<ProjectionOrder>(i)));
@@ -460,6 +468,30 @@ const std::vector<KeySpec>& common_keys() {
         boolean("solver.ref.ignore_colliders", so.ref_ignore_colliders,
                 "reference: run a scene that has colliders without its contacts (the references "
                 "have none yet; the run file records this key)"),
+        real("solver.global.tolerance", so.global_tolerance, "m", above(0),
+             "global-*: converged when the step's KKT residual, in position units, is below this"),
+        integer("solver.global.max_iterations", so.global_max_iterations, within(1, 1000000),
+                "global-*: outer iterations allowed per step (Newton, or Levenberg-Marquardt for "
+                "global-ceres)"),
+        real("solver.global.regularization", so.global_regularization, "1", above_upto(0, 1),
+             "global-*: eta; a rigid constraint or contact r gets the augmented-Lagrangian penalty "
+             "1 / (eta w_r), w_r its generalised inverse mass"),
+        text("solver.global.cg_preconditioner", so.global_cg_preconditioner,
+             {"incomplete_cholesky", "jacobi"}, "global-cg: preconditioner of the assembled matrix"),
+        boolean("solver.global.matrix_free", so.global_matrix_free,
+                "global-cg: apply the Newton matrix term by term, never assembled (Jacobi "
+                "preconditioner)"),
+        real("solver.global.cg_tolerance", so.global_cg_tolerance, "1", within_open(0, 1),
+             "global-cg: relative residual at which each conjugate-gradient solve stops"),
+        integer("solver.global.cg_max_iterations", so.global_cg_max_iterations,
+                within(1, 100000000), "global-cg: conjugate-gradient iterations per solve"),
+        text("solver.global.ceres_method", so.global_ceres_method,
+             {"levenberg_marquardt", "dogleg"}, "global-ceres: the trust-region strategy"),
+        text("shadow.solver", "", shadow_solver_names(),
+             "a global solver (global-cholmod, global-cg, global-ceres) run as a shadow: from the "
+             "start of every k-th step it solves the converged step without touching the run, "
+             "and the gap is logged (shadow_* series); empty: no shadow"),
+        integer("shadow.every", 1, within(1, 1000000000), "the shadow solves every k-th step"),
         integer("output.frame_every", run.frame_every, within(1, 1000000000),
                 "write positions every k steps (and the last step)"),
         real("limits.max_speed", lim.max_speed, "m/s", above(0),

@@ -27,6 +27,7 @@
 
 #include "config/config.hpp"
 #include "harness/compare.hpp"
+#include "harness/converge.hpp"
 #include "harness/runner.hpp"
 #include "harness/summary.hpp"
 #include "harness/sweep.hpp"
@@ -275,6 +276,22 @@ int cmd_compare(const std::string& run_file, const std::string& reference_file,
   return kExitOk;  // the script said where it wrote the plot
 }
 
+// One step solved every way from the same state: the convergence file and its table.
+int cmd_converge(const std::string& scenario, const std::vector<std::string>& sets, int warmup_steps,
+                 int max_sweeps, const std::vector<std::string>& methods, const std::string& out,
+                 bool quiet) {
+  const config::Config cfg = config::load(scenario, parse_overrides(sets));
+  ConvergeOptions options;
+  options.warmup_steps = warmup_steps;
+  options.max_sweeps = max_sweeps;
+  options.methods = methods;
+  options.progress = !quiet;
+  const ConvergeResult result = run_converge(cfg, options);
+  write_converge_file(out, result);
+  std::cout << converge_table(result, options.target) << "-> " << out << "\n";
+  return kExitOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -330,6 +347,26 @@ int main(int argc, char** argv) {
   auto* series = app.add_subcommand("series", "Print the logged series (name, shape, units, doc)");
   series->add_flag("--markdown", markdown, "As the Markdown table of results/README.md");
 
+  int warmup_steps = 0, max_sweeps = 1000;
+  auto* converge = app.add_subcommand(
+      "converge", "Solve one step of a scene with xpbd (three orders, 1 to N sweeps) and the global "
+                  "solvers, and write how each converges");
+  converge->add_option("scenario", scenario, "A scenario file, or a name from scenarios/")->required();
+  converge->add_option("--set", sets, "Override a key by its dotted path (repeatable)");
+  converge->add_option("--warmup-steps", warmup_steps,
+                       "Steps of the scene's own solver before the measured step (default 0)")
+      ->check(CLI::NonNegativeNumber);
+  converge->add_option("--max-sweeps", max_sweeps, "The largest xpbd sweep count (default 1000)")
+      ->check(CLI::PositiveNumber);
+  std::vector<std::string> methods;
+  converge->add_option("--methods", methods,
+                       "Measure only these methods (comma-separated keys; default all: "
+                       "xpbd-sequential, xpbd-colored, xpbd-jacobi, global-cholmod, global-cg, "
+                       "global-cg-matrix-free, global-ceres)")
+      ->delimiter(',');
+  converge->add_option("--out", out, "Convergence file (HDF5) to write")->required();
+  converge->add_flag("--quiet", quiet, "No progress lines on stderr");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -344,6 +381,7 @@ int main(int argc, char** argv) {
     if (*describe) return cmd_describe(scenario, sets, kind);
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*compare) return cmd_compare(file, reference, out, plot, until);
+    if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);
     if (*series) {
       if (markdown) {
         std::cout << series_markdown();

@@ -2,7 +2,11 @@
 
 #include <chrono>
 #include <exception>
+#include <memory>
+#include <stdexcept>
+#include <string>
 
+#include "metrics/shadow.hpp"
 #include "solvers/solver.hpp"
 
 namespace pbdbench {
@@ -27,6 +31,20 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   const Model& model = scene.model;
   State state = std::move(scene.initial);
   auto solver = make_solver(solver_opts, model);
+  // The shadow: a global solver stepping a copy of the state from the same start.
+  std::unique_ptr<Solver> shadow;
+  const std::string shadow_name = config.get_string("shadow.solver");
+  const long shadow_every = static_cast<long>(config.get_int("shadow.every"));
+  if (!shadow_name.empty()) {
+    SolverOptions shadow_opts = solver_opts;
+    shadow_opts.name = shadow_name;
+    try {
+      shadow = make_solver(shadow_opts, model);
+    } catch (const std::invalid_argument& e) {
+      throw config::ConfigError(config::Source{config.file.string(), 0}, "shadow.solver",
+                                e.what());
+    }
+  }
 
   RunOutcome outcome;
   outcome.steps_planned = run.steps();
@@ -47,14 +65,29 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   writer.append({state.time, state.step, 0.0, &sample, &initial_report});
   writer.append_frame(state.time, state.x);
 
+  State shadow_state;
   try {
     for (long k = 1; k <= outcome.steps_planned; ++k) {
+      const bool shadowed = shadow && (k - 1) % shadow_every == 0;
+      if (shadowed) shadow_state = state;
       const auto t0 = Clock::now();
       const StepReport report = solver->step(model, state, run.dt);
       const double wall = seconds_since(t0);
       outcome.solver_time += wall;
       sample = measure(model, state, baseline);
-      writer.append({state.time, state.step, wall, &sample, &report});
+      ShadowSample shadow_sample;
+      if (shadowed) {
+        const auto ts = Clock::now();
+        const StepReport sr = shadow->step(model, shadow_state, run.dt);
+        shadow_sample = measure_shadow(model, state, shadow_state);
+        shadow_sample.time = seconds_since(ts);
+        shadow_sample.cost_ratio = shadow_sample.time / wall;
+        shadow_sample.residual_g = sr.residual_g;
+        shadow_sample.residual_h = sr.residual_h;
+        shadow_sample.residual_position = sr.residual_position;
+        shadow_sample.iterations = static_cast<double>(sr.newton_iterations);
+      }
+      writer.append({state.time, state.step, wall, &sample, &report, &shadow_sample});
       outcome.steps_completed = k;
       const std::string why = explosion_reason(model, state, sample, run.limits, baseline);
       if (!why.empty()) {

@@ -15,6 +15,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "core/constraint_functions.hpp"
 #include "core/fem.hpp"
@@ -246,6 +247,18 @@ void scatter(const Eigen::Matrix<double, 3 * K, 3 * K>& H, const std::int64_t* s
 }
 
 }  // namespace
+
+double smooth_bending(const Constraint& c, const Points& x, Eigen::Matrix<double, 12, 1>* grad_C,
+                      bool* valid) {
+  const BendingTerm t = bending_term(c, x, grad_C, nullptr);
+  if (valid) *valid = t.valid;
+  return t.C;
+}
+
+Eigen::Matrix<double, 12, 12> volume_constraint_hessian(const Vec3& x0, const Vec3& x1,
+                                                        const Vec3& x2, const Vec3& x3) {
+  return volume_hessian(x0, x1, x2, x3);
+}
 
 // ---------------------------------------------------------------------------------------------
 // Construction: dofs, masses, term lists, the pattern and the slots.
@@ -532,11 +545,9 @@ void EnergyModel::gradient(const Points& x, Eigen::VectorXd& g) const {
     g.segment<3>(3 * static_cast<Eigen::Index>(k)) -= mass_(3 * static_cast<Eigen::Index>(k)) * model.gravity;
 }
 
-void EnergyModel::hessian(const Points& x, std::vector<double>& values, bool project) const {
+template <class Visit>
+void EnergyModel::visit_hessian_terms(const Points& x, bool project, Visit&& visit) const {
   const Model& model = *model_;
-  values.assign(static_cast<size_t>(pattern_.nnz()), 0.0);
-  double* out = values.data();
-  const std::int64_t* cs = pattern_.column_start.data();
   int dof[4];
   size_t t = 0;
   for (int j : compliant_) {
@@ -561,7 +572,7 @@ void EnergyModel::hessian(const Points& x, std::vector<double>& values, bool pro
         const Mat3 B = inv_alpha * (nn + ratio * (Mat3::Identity() - nn));
         Mat6 H;
         H << B, -B, -B, B;
-        scatter<2>(H, slots, dof, cs, out);
+        visit(H, slots, dof);
         break;
       }
       case ConstraintKind::Volume: {
@@ -572,7 +583,7 @@ void EnergyModel::hessian(const Points& x, std::vector<double>& values, bool pro
         for (int i = 0; i < 4; ++i) g.segment<3>(3 * i) = ev.grad[static_cast<size_t>(i)];
         Mat12 H = inv_alpha * (g * g.transpose() + ev.C * volume_hessian(x0, x1, x2, x3));
         if (project) project_psd<12>(H);
-        scatter<4>(H, slots, dof, cs, out);
+        visit(H, slots, dof);
         break;
       }
       case ConstraintKind::Bending: {
@@ -581,7 +592,7 @@ void EnergyModel::hessian(const Points& x, std::vector<double>& values, bool pro
         if (!bending_term(c, x, nullptr, &H).valid) continue;
         H *= inv_alpha;
         if (project) project_psd<12>(H);
-        scatter<4>(H, slots, dof, cs, out);
+        visit(H, slots, dof);
         break;
       }
       case ConstraintKind::FemDeviatoric:
@@ -593,8 +604,32 @@ void EnergyModel::hessian(const Points& x, std::vector<double>& values, bool pro
     const std::int64_t* slots = slots_.data() + slot_start_[t++];
     for (int i = 0; i < 4; ++i) dof[i] = particle_dof_[static_cast<size_t>(e.particles[static_cast<size_t>(i)])];
     const Mat12 H = fem::element_hessian(e, x, project);
-    scatter<4>(H, slots, dof, cs, out);
+    visit(H, slots, dof);
   }
+}
+
+void EnergyModel::hessian(const Points& x, std::vector<double>& values, bool project) const {
+  values.assign(static_cast<size_t>(pattern_.nnz()), 0.0);
+  double* out = values.data();
+  const std::int64_t* cs = pattern_.column_start.data();
+  visit_hessian_terms(x, project, [&](const auto& H, const std::int64_t* slots, const int* dof) {
+    constexpr int K = std::decay_t<decltype(H)>::RowsAtCompileTime / 3;
+    scatter<K>(H, slots, dof, cs, out);
+  });
+}
+
+void EnergyModel::hessian_product(const Points& x, const Eigen::VectorXd& v, Eigen::VectorXd& out,
+                                  bool project) const {
+  out.setZero(dofs());
+  visit_hessian_terms(x, project, [&](const auto& H, const std::int64_t*, const int* dof) {
+    constexpr int K = std::decay_t<decltype(H)>::RowsAtCompileTime / 3;
+    Eigen::Matrix<double, 3 * K, 1> local = Eigen::Matrix<double, 3 * K, 1>::Zero();
+    for (int i = 0; i < K; ++i)
+      if (dof[i] >= 0) local.template segment<3>(3 * i) = v.segment<3>(3 * dof[i]);
+    const Eigen::Matrix<double, 3 * K, 1> product = H * local;
+    for (int i = 0; i < K; ++i)
+      if (dof[i] >= 0) out.segment<3>(3 * dof[i]) += product.template segment<3>(3 * i);
+  });
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -69,6 +69,9 @@ class EnergyModel {
   // With project_psd each term's dense block is projected onto the positive semi-definite cone
   // (negative eigenvalues clamped to 0) before it is added, so the sum is PSD.
   void hessian(const Points& x, std::vector<double>& values, bool project_psd = false) const;
+  // out = (d2U/dq2) v term by term, never assembled (the same terms and projection as hessian()).
+  void hessian_product(const Points& x, const Eigen::VectorXd& v, Eigen::VectorXd& out,
+                       bool project_psd = false) const;
 
   // Damping force f_d (N, per dof) and the matrix D = sum beta grad C grad C^T (N s/m, in
   // hessian_pattern() order) with f_d = -D v. Zero when no constraint has damping.
@@ -98,6 +101,22 @@ class EnergyModel {
   // that position + c (column_start[3 dof_j + 1] - column_start[3 dof_j]) + r.
   std::vector<std::int64_t> slots_;
   std::vector<std::int64_t> slot_start_;  // (terms + 1)
+
+  // Calls visit(H, slots, dof) for each term of d2U/dq2 with its dense block H (6 x 6 or
+  // 12 x 12), its slots and the dof blocks of its particles (-1: not dynamic).
+  template <class Visit>
+  void visit_hessian_terms(const Points& x, bool project, Visit&& visit) const;
 };
+
+// A bending constraint's C as U writes it (pi - |phi| - rest, phi the signed angle smooth at
+// flat; see EnergyModel) and, when grad_C is given, its gradient over the four particles. valid
+// is false for a degenerate wing (C = -rest then).
+double smooth_bending(const Constraint& c, const Points& x, Eigen::Matrix<double, 12, 1>* grad_C,
+                      bool* valid = nullptr);
+
+// d2C/dx2 of the volume constraint C = (1/6) (x1-x0) . ((x2-x0) x (x3-x0)) - rest (12 x 12 over
+// x0..x3; C is cubic, so this is linear in the positions).
+Eigen::Matrix<double, 12, 12> volume_constraint_hessian(const Vec3& x0, const Vec3& x1,
+                                                        const Vec3& x2, const Vec3& x3);
 
 }  // namespace pbdbench

@@ -19,6 +19,10 @@ using Read = void (*)(const SeriesRow&, double*);
   }
 #define PBDBENCH_REPORT(field) \
   [](const SeriesRow& r, double* out) { out[0] = static_cast<double>(r.report->field); }
+#define PBDBENCH_SHADOW(field)                                                            \
+  [](const SeriesRow& r, double* out) {                                                   \
+    out[0] = r.shadow != nullptr ? r.shadow->field : ShadowSample::kNaN;                  \
+  }
 
 const std::array kSeries = {
     // Time.
@@ -136,10 +140,43 @@ const std::array kSeries = {
                "of the linear setups, LU factorisations (the reduced matrix was indefinite or "
                "unsymmetric)",
                1, true, PBDBENCH_REPORT(lu_factorizations)},
+    SeriesSpec{"linear_iterations", "1",
+               "global solvers: conjugate-gradient (global-cg) or Levenberg-Marquardt "
+               "(global-ceres) iterations in the step",
+               1, true, PBDBENCH_REPORT(linear_iterations)},
+    SeriesSpec{"residual_position", "m",
+               "global solvers: the KKT residual of the step's last substep in position units "
+               "(NaN otherwise)",
+               1, true, PBDBENCH_REPORT(residual_position)},
     SeriesSpec{"constraint_drift", "mixed",
                "max |C| of the rigid constraints at the end of the step, in their units (ref-dae; "
                "NaN otherwise)",
                1, true, PBDBENCH_REPORT(constraint_drift)},
+
+    // The shadow (shadow.solver): the same step solved by a global solver from the same start
+    // (metrics/shadow.hpp); NaN on the steps without one.
+    SeriesSpec{"shadow_gap", "kg^1/2 m",
+               "|x - x*|_M, the run's step against the shadow's converged step x* over the "
+               "dynamic particles",
+               1, true, PBDBENCH_SHADOW(gap)},
+    SeriesSpec{"shadow_gap_rms", "m", "shadow_gap / sqrt(dynamic mass): the mass-weighted RMS "
+               "distance from x*", 1, true, PBDBENCH_SHADOW(gap_rms)},
+    SeriesSpec{"shadow_gap_max", "m", "max particle distance from x*", 1, true,
+               PBDBENCH_SHADOW(gap_max)},
+    SeriesSpec{"shadow_constraint_error_max", "1", "constraint_error_max of x*", 1, true,
+               PBDBENCH_SHADOW(error_max)},
+    SeriesSpec{"shadow_residual_g", "kg m", "the shadow's residual_g at x*", 1, true,
+               PBDBENCH_SHADOW(residual_g)},
+    SeriesSpec{"shadow_residual_h", "mixed", "the shadow's residual_h at x*", 1, true,
+               PBDBENCH_SHADOW(residual_h)},
+    SeriesSpec{"shadow_residual_position", "m", "the shadow's residual_position at x*", 1, true,
+               PBDBENCH_SHADOW(residual_position)},
+    SeriesSpec{"shadow_iterations", "1", "the shadow's Newton (or augmented-Lagrangian) iterations",
+               1, true, PBDBENCH_SHADOW(iterations)},
+    SeriesSpec{"shadow_time", "s", "wall time of the shadow's step", 1, false,
+               PBDBENCH_SHADOW(time)},
+    SeriesSpec{"shadow_cost_ratio", "1", "shadow_time / wall_step, the shadow's cost in run steps",
+               1, false, PBDBENCH_SHADOW(cost_ratio)},
 
     // Wall-clock timings: not deterministic.
     SeriesSpec{"time_predict", "s", "wall time in prediction, summed over substeps", 1, false,
@@ -160,6 +197,7 @@ const std::array kSeries = {
 #undef PBDBENCH_SAMPLE
 #undef PBDBENCH_SAMPLE3
 #undef PBDBENCH_REPORT
+#undef PBDBENCH_SHADOW
 
 const std::array kGroupSeries = {
     GroupSeriesSpec{"constraint_error_max_", "1",

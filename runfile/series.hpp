@@ -8,6 +8,7 @@
 #include <string_view>
 
 #include "metrics/metrics.hpp"
+#include "metrics/shadow.hpp"
 #include "solvers/solver.hpp"
 
 namespace pbdbench {
@@ -19,6 +20,7 @@ struct SeriesRow {
   double wall_step = 0.0;      // s, wall-clock time of solver.step() (0 for the initial row)
   const Sample* sample = nullptr;
   const StepReport* report = nullptr;  // a default StepReport for the initial row
+  const ShadowSample* shadow = nullptr;  // NaN fields where no shadow was solved; may be null
 };
 
 struct SeriesSpec {

@@ -88,6 +88,28 @@ std::string SolverOptions::validate() const {
   if (ref_max_newton < 1) return out_of_range("solver.ref.max_newton", ref_max_newton, "below the minimum", 1);
   if (ref_max_newton > 100000)
     return out_of_range("solver.ref.max_newton", ref_max_newton, "above the maximum", 100000);
+  if (!(global_tolerance > 0.0) || !std::isfinite(global_tolerance))
+    return out_of_range("solver.global.tolerance", global_tolerance, "not above", 0.0);
+  if (global_max_iterations < 1)
+    return out_of_range("solver.global.max_iterations", global_max_iterations, "below the minimum", 1);
+  if (global_max_iterations > 1000000)
+    return out_of_range("solver.global.max_iterations", global_max_iterations, "above the maximum", 1000000);
+  if (!(global_regularization > 0.0 && global_regularization <= 1.0))
+    return "solver.global.regularization = " + std::to_string(global_regularization) +
+           " is outside (0, 1]";
+  if (global_cg_preconditioner != "incomplete_cholesky" && global_cg_preconditioner != "jacobi")
+    return "solver.global.cg_preconditioner = '" + global_cg_preconditioner +
+           "' is not one of incomplete_cholesky, jacobi";
+  if (!(global_cg_tolerance > 0.0 && global_cg_tolerance < 1.0))
+    return "solver.global.cg_tolerance = " + std::to_string(global_cg_tolerance) +
+           " is outside (0, 1)";
+  if (global_cg_max_iterations < 1)
+    return out_of_range("solver.global.cg_max_iterations", global_cg_max_iterations, "below the minimum", 1);
+  if (global_cg_max_iterations > 100000000)
+    return out_of_range("solver.global.cg_max_iterations", global_cg_max_iterations, "above the maximum", 100000000);
+  if (global_ceres_method != "levenberg_marquardt" && global_ceres_method != "dogleg")
+    return "solver.global.ceres_method = '" + global_ceres_method +
+           "' is not one of levenberg_marquardt, dogleg";
   const auto& ids = seed_departure_ids();
   for (const std::string& f : seed_fixes)
     if (std::find(ids.begin(), ids.end(), f) == ids.end())

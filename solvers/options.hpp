@@ -71,6 +71,26 @@ struct SolverOptions {
   bool ref_ignore_colliders = false;  // solver.ref.ignore_colliders: run a scene that has
                                       // colliders without its contacts (the references have none)
 
+  // [solver.global]: the global projection solvers global-cholmod, global-cg, global-ceres
+  // (reference/global_problem.hpp, docs/global.md).
+  double global_tolerance = 1e-9;     // solver.global.tolerance: m, the step is converged when
+                                      // its KKT residual in position units is below this
+  int global_max_iterations = 200;    // solver.global.max_iterations: outer iterations (Newton
+                                      // steps; Levenberg-Marquardt iterations for global-ceres)
+  double global_regularization = 1e-4;  // solver.global.regularization: eta, the augmented
+                                      // Lagrangian's penalty of a rigid constraint or contact r is
+                                      // 1 / (eta w_r), w_r its generalised inverse mass
+  std::string global_cg_preconditioner = "incomplete_cholesky";  // solver.global.cg_preconditioner:
+                                      // "incomplete_cholesky" or "jacobi" (global-cg)
+  bool global_matrix_free = false;    // solver.global.matrix_free: global-cg applies the Newton
+                                      // matrix term by term instead of assembling it (Jacobi
+                                      // preconditioner)
+  double global_cg_tolerance = 1e-10;  // solver.global.cg_tolerance: relative residual of each
+                                      // conjugate-gradient solve (global-cg)
+  int global_cg_max_iterations = 100000;  // solver.global.cg_max_iterations (global-cg)
+  std::string global_ceres_method = "levenberg_marquardt";  // solver.global.ceres_method:
+                                      // "levenberg_marquardt" or "dogleg" (global-ceres)
+
   // Returns an empty string when valid, else a message naming the field and the bound broken,
   // e.g. "solver.iterations = 0 is below the minimum 1".
   std::string validate() const;

@@ -2,6 +2,7 @@
 #include <stdexcept>
 
 #include "reference/reference_solvers.hpp"
+#include "solvers/global.hpp"
 #include "solvers/solver.hpp"
 #include "solvers/step_common.hpp"
 
@@ -19,6 +20,7 @@ const std::vector<SolverInfo>& solver_catalog() {
        "(Macklin et al. 2019)"},
     };
     for (const SolverInfo& r : reference_solver_catalog()) all.push_back(r);
+    for (const SolverInfo& g : global_solver_catalog()) all.push_back(g);
     return all;
   }();
   return catalog;
@@ -31,6 +33,7 @@ std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& m
   if (options.name == "xpbd") return make_xpbd_solver(options, model);
   if (options.name == "pbd-seed") return make_pbd_seed_solver(options, model);
   if (is_reference_solver(options.name)) return make_reference_solver(options, model);
+  if (is_global_solver(options.name)) return make_global_solver(options, model);
   throw std::invalid_argument("solver.name = '" + options.name + "' is not a registered solver");
 }
 

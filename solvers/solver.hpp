@@ -39,6 +39,11 @@ struct StepReport {
   long cholesky_factorizations = 0;  // of the setups: Cholesky factorisations (reduced systems)
   long lu_factorizations = 0;        // of the setups: LU factorisations where Cholesky failed or
                                      // the matrix was not symmetric (reduced systems)
+  long linear_iterations = 0;     // global solvers: conjugate-gradient iterations (global-cg),
+                                  // Levenberg-Marquardt iterations (global-ceres)
+  double residual_position = std::numeric_limits<double>::quiet_NaN();  // global solvers: the
+                                  // KKT residual of the last substep in position units, m
+                                  // (reference/global_problem.hpp)
   double constraint_drift = std::numeric_limits<double>::quiet_NaN();  // max |C| of the rigid
                                   // constraints at the end of the step (ref-dae), units of C
   // Wall-clock time per phase, summed over substeps, in seconds.

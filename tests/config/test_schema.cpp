@@ -205,9 +205,10 @@ TEST(Schema, SolverBoundsAgreeWithValidate) {
     }
   }
   // Both bounds of iterations, substeps, jacobi_relaxation, pbd.velocity_damping, seed.damping,
-  // seed.restitution, ref.rtol, ref.max_steps and ref.max_newton; the minimum of contact_margin,
-  // seed.reference_dt, ref.atol and ref.atol_velocity.
-  EXPECT_EQ(bounds_checked, 22);
+  // seed.restitution, ref.rtol, ref.max_steps, ref.max_newton, global.max_iterations,
+  // global.regularization, global.cg_tolerance and global.cg_max_iterations; the minimum of
+  // contact_margin, seed.reference_dt, ref.atol, ref.atol_velocity and global.tolerance.
+  EXPECT_EQ(bounds_checked, 31);
 }
 
 TEST(Schema, SetSolverOptionRefusesOtherPaths) {

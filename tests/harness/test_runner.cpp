@@ -7,6 +7,9 @@
 #include <cstring>
 #include <cmath>
 #include <filesystem>
+#include <limits>
+#include <string>
+#include <vector>
 #include <stdexcept>
 
 #include "config/config.hpp"
@@ -142,4 +145,49 @@ TEST(Runner, SameInputsGiveIdenticalSeries) {
       }
     }
   }
+}
+
+// The shadow (shadow.solver): the global solver's converged step from the same start as every
+// k-th step, logged beside the run without changing it. Its gap shrinks as the run's iterations
+// grow, the run's own series are those of a run without a shadow, and the steps without a shadow
+// solve hold NaN.
+TEST(Runner, ShadowGapShrinksAsIterationsGrowAndLeavesTheRunAlone) {
+  auto shadow_run = [](int iterations, int every, const std::string& tag) {
+    std::vector<config::Override> o = {{"solver.iterations", std::to_string(iterations)},
+                                       {"time.duration", "0.5"},
+                                       {"shadow.solver", "global-cholmod"},
+                                       {"shadow.every", std::to_string(every)}};
+    const fs::path out = temp_file("shadow_" + tag + ".h5");
+    EXPECT_EQ(run_config(config::load("hanging_chain", o), out).status, RunStatus::Complete);
+    return read_run_file(out);
+  };
+  double previous = std::numeric_limits<double>::infinity();
+  for (int iterations : {1, 5, 20, 100}) {
+    const RunFileData d = shadow_run(iterations, 1, std::to_string(iterations));
+    const auto& gap = d.series.at("shadow_gap_rms");
+    EXPECT_TRUE(std::isnan(gap[0]));  // the initial row
+    double mean = 0.0;
+    for (size_t k = 1; k < gap.size(); ++k) mean += gap[k] / static_cast<double>(gap.size() - 1);
+    EXPECT_LT(mean, previous) << iterations << " iterations";
+    previous = mean;
+    for (size_t k = 1; k < gap.size(); ++k)
+      EXPECT_LE(d.series.at("shadow_residual_position")[k], 1e-9);
+  }
+  // Every other step, and the run unchanged by its shadow.
+  const RunFileData sparse = shadow_run(5, 2, "every2");
+  const auto& gap = sparse.series.at("shadow_gap_rms");
+  for (size_t k = 1; k < gap.size(); ++k) EXPECT_EQ(std::isnan(gap[k]), k % 2 == 0) << k;
+  const fs::path plain = temp_file("shadow_none.h5");
+  run_config(config::load("hanging_chain", {{"solver.iterations", "5"}, {"time.duration", "0.5"}}),
+             plain);
+  const RunFileData d0 = read_run_file(plain);
+  const auto& a = d0.series.at("constraint_error_max");
+  const auto& b = sparse.series.at("constraint_error_max");
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k)
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(a[k]), std::bit_cast<std::uint64_t>(b[k]));
+}
+
+TEST(Runner, ShadowMustBeAGlobalSolver) {
+  EXPECT_THROW(config::load("hanging_chain", {{"shadow.solver", "xpbd"}}), config::ConfigError);
 }

@@ -71,7 +71,8 @@ TEST(runfile_series, RequiredSeriesInOrder) {
 
 TEST(runfile_series, ShapesUnitsDocsAndDeterminism) {
   const std::set<std::string> timings = {"time_predict", "time_contacts", "time_project",
-                                         "time_velocity", "time_linear", "wall_step"};
+                                         "time_velocity", "time_linear", "wall_step",
+                                         "shadow_time", "shadow_cost_ratio"};
   const std::set<std::string> vectors = {"linear_momentum", "angular_momentum",
                                          "tip_displacement", "support_force"};
   for (const SeriesSpec& s : series_table()) {
@@ -141,7 +142,20 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   r.time_linear = 42.5;
   r.cholesky_factorizations = 50;
   r.lu_factorizations = 51;
-  const SeriesRow row{32.5, 33, 34.5, &s, &r};
+  r.linear_iterations = 52;
+  r.residual_position = 53.5;
+  ShadowSample sh;
+  sh.gap = 54.5;
+  sh.gap_rms = 55.5;
+  sh.gap_max = 56.5;
+  sh.error_max = 57.5;
+  sh.residual_g = 58.5;
+  sh.residual_h = 59.5;
+  sh.residual_position = 60.5;
+  sh.iterations = 61;
+  sh.time = 62.5;
+  sh.cost_ratio = 63.5;
+  const SeriesRow row{32.5, 33, 34.5, &s, &r, &sh};
 
   const std::map<std::string, std::vector<double>> expected = {
       {"time", {32.5}}, {"step", {33}}, {"constraint_error_max", {1.5}},
@@ -159,7 +173,11 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"constraint_drift", {41.5}}, {"time_linear", {42.5}},
       {"tip_displacement", {43.5, 44.5, 45.5}}, {"support_force", {46.5, 47.5, 48.5}},
       {"pendulum_angle", {49.5}}, {"cholesky_factorizations", {50}},
-      {"lu_factorizations", {51}}};
+      {"lu_factorizations", {51}}, {"linear_iterations", {52}}, {"residual_position", {53.5}},
+      {"shadow_gap", {54.5}}, {"shadow_gap_rms", {55.5}}, {"shadow_gap_max", {56.5}},
+      {"shadow_constraint_error_max", {57.5}}, {"shadow_residual_g", {58.5}},
+      {"shadow_residual_h", {59.5}}, {"shadow_residual_position", {60.5}},
+      {"shadow_iterations", {61}}, {"shadow_time", {62.5}}, {"shadow_cost_ratio", {63.5}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";

@@ -14,7 +14,7 @@ namespace {
 std::vector<SolverInfo> pbd_family() {
   std::vector<SolverInfo> out;
   for (const SolverInfo& info : solver_catalog())
-    if (info.name.rfind("ref-", 0) != 0) out.push_back(info);
+    if (info.name.rfind("ref-", 0) != 0 && info.name.rfind("global-", 0) != 0) out.push_back(info);
   return out;
 }
 

@@ -1,0 +1,136 @@
+// global-cholmod, global-cg, global-ceres: the simulation whose every (sub)step is the global
+// projection solved to convergence (reference/global_problem.hpp, docs/global.md). The substep
+// around it is pbd's and xpbd's (solvers/substep.hpp), so that only the projection differs:
+//   kinematic particles on their targets at t_end;  v += h g;  x~ = x + h v
+//   contacts = find_contacts(x~, t_end, contact_margin)
+//   x* = the global step from (x, x~) with those contacts, to solver.global.tolerance
+//   v = (x* - x) / h;  x = x*;  velocity pass (friction, restitution) with the contacts' lambda
+// State::lambda: -C/alpha for the compliant constraints, lambda_r / h^2 for the rigid ones
+// (forces per unit of C, as every solver leaves them). The rigid rows' multipliers are carried
+// from one substep to the next as the starting guess.
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/contacts.hpp"
+#include "reference/global_ceres.hpp"
+#include "reference/global_newton.hpp"
+#include "reference/global_problem.hpp"
+#include "solvers/global.hpp"
+#include "solvers/step_common.hpp"
+#include "solvers/substep.hpp"
+
+namespace pbdbench {
+
+namespace {
+
+class GlobalSolver final : public Solver {
+ public:
+  GlobalSolver(const SolverOptions& options, const Model& model)
+      : options_(options), problem_(model), work_(model.particle_count()) {
+    if (options.name == "global-cholmod")
+      newton_ = std::make_unique<GlobalNewton>(options, GlobalLinearSolver::Cholmod);
+    else if (options.name == "global-cg")
+      newton_ = std::make_unique<GlobalNewton>(options, GlobalLinearSolver::ConjugateGradient);
+    else if (options.name != "global-ceres")
+      throw std::invalid_argument("solver.name = '" + options.name + "' is not a global solver");
+  }
+
+  std::string name() const override { return options_.name; }
+
+  StepReport step(const Model& model, State& state, double dt) override {
+    check_step(model, state, dt, model.particle_count(), model.constraint_count());
+    if (&model != &problem_.model())
+      throw std::invalid_argument(name() + ": step() was given another model than it was built for");
+    StepReport report;
+    last_.clear();
+    const int substeps = options_.substeps;
+    const double h = dt / substeps;
+    report.substeps = substeps;
+    Points& x = state.x;
+    Points& v = state.v;
+    for (int s = 0; s < substeps; ++s) {
+      const double t_end = state.time + (s + 1) * h;
+      PhaseTimer timer;
+      set_kinematic(model, x, v, t_end);
+      apply_gravity(model, h, v);
+      predict_positions(model, x, v, h, work_.p);
+      work_.v_before = v;
+      timer.lap(report.time_predict);
+
+      work_.contacts = find_contacts(model, work_.p, t_end, options_.contact_margin);
+      report.contacts += static_cast<int>(work_.contacts.size());
+      problem_.begin_step(x, work_.p, h, t_end, work_.contacts);
+      timer.lap(report.time_contacts);
+
+      // Rigid rows first, in a fixed order: their multipliers carry over; contacts start at 0.
+      const size_t rigid = problem_.rows().size() - work_.contacts.size();
+      row_lambda_.resize(rigid);
+      row_lambda_.resize(problem_.rows().size(), 0.0);
+      GlobalResult r = newton_ ? newton_->solve(problem_, work_.p, row_lambda_)
+                               : solve_global_ceres(problem_, options_, work_.p, row_lambda_);
+      report.newton_iterations += r.iterations;
+      report.linear_iterations += r.inner_iterations;
+      report.linear_setups += r.factorizations;
+      report.cholesky_factorizations += r.factorizations;
+      report.linear_solves += r.linear_solves;
+      report.time_linear += r.time_linear;
+      if (!r.converged) ++report.convergence_failures;
+      report.residual_g = r.residual_g;
+      report.residual_h = r.residual_h;
+      report.residual_position = r.residual;
+      timer.lap(report.time_project);
+
+      work_.contact_lambda.assign(row_lambda_.begin() + static_cast<std::ptrdiff_t>(rigid),
+                                  row_lambda_.end());
+      for (double l : work_.contact_lambda) report.active_contacts += l > 0.0 ? 1 : 0;
+      finish_substep(model, t_end, h, work_, x, v);
+      timer.lap(report.time_velocity);
+      last_.push_back(std::move(r));
+    }
+    problem_.constraint_forces(x, row_lambda_, state.lambda);
+    state.time += dt;
+    state.step += 1;
+    return report;
+  }
+
+  const std::vector<GlobalResult>& last_results() const { return last_; }
+
+ private:
+  SolverOptions options_;
+  GlobalProblem problem_;
+  std::unique_ptr<GlobalNewton> newton_;  // null for global-ceres
+  SubstepScratch work_;
+  std::vector<double> row_lambda_;
+  std::vector<GlobalResult> last_;
+};
+
+}  // namespace
+
+const std::vector<SolverInfo>& global_solver_catalog() {
+  static const std::vector<SolverInfo> catalog = {
+      {"global-cholmod",
+       "global projection: every step's converged implicit step, Newton on an augmented "
+       "Lagrangian, sparse Cholesky (CHOLMOD)"},
+      {"global-cg",
+       "global projection: the same Newton iterations with preconditioned conjugate gradients "
+       "(assembled or matrix-free)"},
+      {"global-ceres",
+       "global projection: the same step as nonlinear least squares (Ceres, "
+       "Levenberg-Marquardt on SuiteSparse)"},
+  };
+  return catalog;
+}
+
+bool is_global_solver(const std::string& name) {
+  for (const SolverInfo& s : global_solver_catalog())
+    if (s.name == name) return true;
+  return false;
+}
+
+std::unique_ptr<Solver> make_global_solver(const SolverOptions& options, const Model& model) {
+  return std::make_unique<GlobalSolver>(options, model);
+}
+
+}  // namespace pbdbench
