@@ -44,7 +44,6 @@ class GlobalSolver final : public Solver {
     if (&model != &problem_.model())
       throw std::invalid_argument(name() + ": step() was given another model than it was built for");
     StepReport report;
-    last_.clear();
     const int substeps = options_.substeps;
     const double h = dt / substeps;
     report.substeps = substeps;
@@ -68,7 +67,7 @@ class GlobalSolver final : public Solver {
       const size_t rigid = problem_.rows().size() - work_.contacts.size();
       row_lambda_.resize(rigid);
       row_lambda_.resize(problem_.rows().size(), 0.0);
-      GlobalResult r = newton_ ? newton_->solve(problem_, work_.p, row_lambda_)
+      const GlobalResult r = newton_ ? newton_->solve(problem_, work_.p, row_lambda_)
                                : solve_global_ceres(problem_, options_, work_.p, row_lambda_);
       report.newton_iterations += r.iterations;
       report.linear_iterations += r.inner_iterations;
@@ -87,7 +86,6 @@ class GlobalSolver final : public Solver {
       for (double l : work_.contact_lambda) report.active_contacts += l > 0.0 ? 1 : 0;
       finish_substep(model, t_end, h, work_, x, v);
       timer.lap(report.time_velocity);
-      last_.push_back(std::move(r));
     }
     problem_.constraint_forces(x, row_lambda_, state.lambda);
     state.time += dt;
@@ -95,15 +93,12 @@ class GlobalSolver final : public Solver {
     return report;
   }
 
-  const std::vector<GlobalResult>& last_results() const { return last_; }
-
  private:
   SolverOptions options_;
   GlobalProblem problem_;
   std::unique_ptr<GlobalNewton> newton_;  // null for global-ceres
   SubstepScratch work_;
   std::vector<double> row_lambda_;
-  std::vector<GlobalResult> last_;
 };
 
 }  // namespace
