@@ -158,7 +158,8 @@ RunOptions run_options(const Config& config);
 std::string describe_keys(const std::string& scene_kind);
 std::string describe_config(const Config& config);
 
-// The scenario files in scenarios_dir(), sorted: name, scene kind, description.
+// The scenario files in scenarios_dir() and its subfolders, sorted: name ("hanging_chain",
+// "failures/zero_rest_length"), scene kind, description.
 struct ScenarioInfo {
   std::string name;
   std::string kind;

@@ -1,5 +1,6 @@
 // Documentation read from the schema: describe_keys / describe_config (plain text for the
-// terminal), list_scenarios, and schema_markdown (the generated part of docs/scenarios.md).
+// terminal), list_scenarios (the catalog and its subfolders), and schema_markdown (the generated
+// part of docs/scenarios.md).
 #include <algorithm>
 #include <filesystem>
 
@@ -149,10 +150,12 @@ std::vector<ScenarioInfo> list_scenarios() {
   const std::filesystem::path dir = scenarios_dir();
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec)) return out;
-  for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
+  // The catalog's top level and its subfolders (failures/...): a file in a subfolder is named
+  // "<folder>/<stem>", the name resolve_scenario takes.
+  for (const auto& f : std::filesystem::recursive_directory_iterator(dir, ec)) {
     if (!f.is_regular_file() || f.path().extension() != ".toml") continue;
     ScenarioInfo info;
-    info.name = f.path().stem().string();
+    info.name = (f.path().lexically_relative(dir).parent_path() / f.path().stem()).generic_string();
     info.file = f.path();
     info.kind = "particle";
     try {

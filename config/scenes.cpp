@@ -3,6 +3,7 @@
 // the model checks refuse becomes a ConfigError naming the responsible key.
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <optional>
 #include <set>
@@ -16,6 +17,7 @@
 #include "core/generators.hpp"
 #include "core/mesh_io.hpp"
 #include "core/model_checks.hpp"
+#include "solvers/ordering.hpp"
 
 namespace pbdbench::config {
 
@@ -139,7 +141,8 @@ class SceneBuilder {
             motion_velocity(model_.motions[static_cast<std::size_t>(a.motion)], 0.0).transpose();
     for (const auto& [particle, x] : initial_positions_) scene.initial.x.row(particle) = x.transpose();
 
-    check(check_model(model_), "model");
+    const std::vector<int> free_inverse_mass = apply_defects(scene.initial);
+    check(check_model(model_, free_inverse_mass), "model");
     check(check_state(model_, scene.initial), "initial state");
     scene.model = std::move(model_);
     return scene;
@@ -357,7 +360,18 @@ class SceneBuilder {
     s.mass = real(m_, "scene.mass");
     s.jitter = real(m_, "scene.jitter");
     s.seed = static_cast<std::uint64_t>(whole(m_, "scene.seed"));
-    if (!(s.jitter < s.radius * s.gap))
+    if (word(m_, "scene.layout") == "ring") {
+      // count[0] spheres on a horizontal circle (normal to gravity) around scene.origin; they may
+      // start overlapping, which is what the layout is for.
+      if (count[1] != 1 || count[2] != 1)
+        refuse("scene.count",
+               fmt::format("scene.count = [{}, {}, {}]: the ring layout puts count[0] spheres on "
+                           "its circle; count[1] and count[2] must be 1",
+                           count[0], count[1], count[2]));
+      s.layout = SpheresLayout::Ring;
+      s.ring_radius = real(m_, "scene.ring_radius");
+      s.up = up_direction(model_);
+    } else if (!(s.jitter < s.radius * s.gap))
       refuse("scene.jitter",
              fmt::format("scene.jitter = {} m must be below radius * gap = {} m, so that neighbouring "
                          "spheres cannot start overlapping",
@@ -443,6 +457,146 @@ class SceneBuilder {
       refuse("scene.material", fmt::format("scene.material = '{}' cannot be built on {}: {}{}", name,
                                            subject, e.what(), hint));
     }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // [defects]: deliberate faults for failure studies, applied to the model and the initial state
+  // of whatever scene kind was built. Returns the particles whose inverse mass a defect set (the
+  // model checks accept any finite value for them).
+  std::vector<int> apply_defects(State& initial) {
+    // Rest lengths.
+    const int m = model_.constraint_count();
+    auto distance_indices = [&](const std::string& key) {
+      std::vector<std::size_t> out;
+      const auto& list = c_.get_ints(key);
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        if (list[i] >= m)
+          refuse(key, fmt::format("{}[{}] = {} is out of range: the scene has {} constraints", key, i,
+                                  list[i], m));
+        const Constraint& c = model_.constraints[static_cast<std::size_t>(list[i])];
+        if (c.kind != ConstraintKind::Distance)
+          refuse(key, fmt::format("{}[{}] = {}: constraint {} is a {} constraint, not a distance "
+                                  "constraint",
+                                  key, i, list[i], list[i], to_string(c.kind)));
+        out.push_back(static_cast<std::size_t>(list[i]));
+      }
+      return out;
+    };
+    for (std::size_t j : distance_indices("defects.zero_rest_length")) model_.constraints[j].rest = 0.0;
+    const double rest_scale = c_.get_double("defects.rest_scale");
+    std::vector<std::size_t> scaled = distance_indices("defects.rest_scale_constraints");
+    if (c_.get_ints("defects.rest_scale_constraints").empty())
+      for (std::size_t j = 0; j < model_.constraints.size(); ++j)
+        if (model_.constraints[j].kind == ConstraintKind::Distance) scaled.push_back(j);
+    std::sort(scaled.begin(), scaled.end());
+    scaled.erase(std::unique(scaled.begin(), scaled.end()), scaled.end());  // each scaled once
+    if (rest_scale != 1.0)
+      for (std::size_t j : scaled) model_.constraints[j].rest *= rest_scale;
+
+    // Inverse masses.
+    const int n = model_.particle_count();
+    const auto& particles = c_.get_ints("defects.inverse_mass_particles");
+    const auto& values = c_.get_floats("defects.inverse_mass_values");
+    if (particles.size() != values.size())
+      refuse(values.empty() ? "defects.inverse_mass_particles" : "defects.inverse_mass_values",
+             fmt::format("defects.inverse_mass_values has {} values for the {} particles of "
+                         "defects.inverse_mass_particles: give one value per particle",
+                         values.size(), particles.size()));
+    std::vector<int> free_inverse_mass;
+    for (std::size_t i = 0; i < particles.size(); ++i) {
+      if (particles[i] >= n)
+        refuse("defects.inverse_mass_particles",
+               fmt::format("defects.inverse_mass_particles[{}] = {} is out of range: the scene has {} "
+                           "particles",
+                           i, particles[i], n));
+      const int p = static_cast<int>(particles[i]);
+      if (std::find(free_inverse_mass.begin(), free_inverse_mass.end(), p) != free_inverse_mass.end())
+        refuse("defects.inverse_mass_particles",
+               fmt::format("defects.inverse_mass_particles[{}] = {} repeats a particle", i, p));
+      free_inverse_mass.push_back(p);
+      model_.inv_mass[static_cast<std::size_t>(p)] = values[i];
+      // A pinned particle given a non-zero inverse mass loses its pin: its inverse mass alone
+      // decides, as in a listing that pins by inv_mass = 0.
+      if (values[i] != 0.0)
+        std::erase_if(model_.attachments, [p](const Attachment& a) { return a.particle == p; });
+    }
+
+    // Tets with inconsistently oriented volume constraints.
+    const auto& flip = c_.get_ints("defects.flip_tets");
+    const std::int64_t every = c_.get_int("defects.flip_every");
+    if (!flip.empty() || every > 0) {
+      const std::string key = flip.empty() ? "defects.flip_every" : "defects.flip_tets";
+      const std::size_t tets = model_.tets.size();
+      if (tets == 0)
+        refuse(key, fmt::format("{} flips tets, but the {} scene has none", key, kind_));
+      std::set<std::size_t> chosen;
+      for (std::size_t i = 0; i < flip.size(); ++i) {
+        if (static_cast<std::size_t>(flip[i]) >= tets)
+          refuse("defects.flip_tets", fmt::format("defects.flip_tets[{}] = {} is out of range: the "
+                                                  "scene has {} tets",
+                                                  i, flip[i], tets));
+        chosen.insert(static_cast<std::size_t>(flip[i]));
+      }
+      if (every > 0)
+        for (std::size_t t = 0; t < tets; t += static_cast<std::size_t>(every)) chosen.insert(t);
+      // The volume constraints of each tet, found by their particle sets.
+      std::map<std::array<int, 4>, std::vector<std::size_t>> volume_of;
+      for (std::size_t j = 0; j < model_.constraints.size(); ++j) {
+        const Constraint& c = model_.constraints[j];
+        if (c.kind != ConstraintKind::Volume) continue;
+        std::array<int, 4> k = c.particles;
+        std::sort(k.begin(), k.end());
+        volume_of[k].push_back(j);
+      }
+      for (std::size_t t : chosen) {
+        std::array<int, 4> k = model_.tets[t];
+        std::sort(k.begin(), k.end());
+        const auto it = volume_of.find(k);
+        if (it == volume_of.end())
+          refuse(key, fmt::format("{}: tet {} has no volume constraint to flip (scene.volumes = "
+                                  "false?)",
+                                  key, t));
+        for (std::size_t j : it->second) {
+          Constraint& c = model_.constraints[j];
+          std::swap(c.particles[0], c.particles[1]);
+          c.rest = std::abs(c.rest);
+        }
+      }
+    }
+
+    // The initial state: scaled about the dynamic particles' centroid, then jittered.
+    auto dynamic = [&](int i) { return model_.inv_mass[static_cast<std::size_t>(i)] != 0.0; };
+    const double scale = c_.get_double("defects.initial_scale");
+    if (scale != 1.0) {
+      Vec3 centroid = Vec3::Zero();
+      int count = 0;
+      for (int i = 0; i < n; ++i)
+        if (dynamic(i)) {
+          centroid += initial.x.row(i).transpose();
+          ++count;
+        }
+      if (count > 0) {
+        centroid /= static_cast<double>(count);
+        for (int i = 0; i < n; ++i)
+          if (dynamic(i))
+            initial.x.row(i) = (centroid + scale * (initial.x.row(i).transpose() - centroid)).transpose();
+      }
+    }
+    const double jitter = c_.get_double("defects.initial_jitter");
+    if (jitter > 0.0) {
+      // One seeded generator for the whole state; a uniform double in [0, 1) from the top 53 bits
+      // of each draw (portable, unlike std::uniform_real_distribution).
+      std::mt19937_64 gen =
+          sweep_generator(static_cast<std::uint64_t>(c_.get_int("defects.initial_seed")), 0, 0, 0);
+      for (int i = 0; i < n; ++i) {
+        if (!dynamic(i)) continue;
+        for (int a = 0; a < 3; ++a) {
+          const double u = static_cast<double>(gen() >> 11) * 0x1.0p-53;
+          initial.x(i, a) += jitter * (2.0 * u - 1.0);
+        }
+      }
+    }
+    return free_inverse_mass;
   }
 
   void colliders() {

@@ -188,7 +188,8 @@ std::vector<std::string> shadow_solver_names() {
 
 std::vector<std::string> order_names() {
   std::vector<std::string> names;
-  for (int i = 0; i < 5; ++i) names.emplace_back(to_string(static_cast<ProjectionOrder>(i)));
+  for (int i = 0; i < kProjectionOrderCount; ++i)
+    names.emplace_back(to_string(static_cast<ProjectionOrder>(i)));
   return names;
 }
 
@@ -333,17 +334,27 @@ SceneKindInfo tet_block_kind() {
 SceneKindInfo spheres_kind() {
   const PackedSpheresSpec p;
   return {"spheres",
-          "packed spheres on a jittered cubic lattice, with particle-particle contact",
+          "packed spheres on a jittered cubic lattice (or a ring), with particle-particle contact",
           {
+              text("scene.layout", "grid", {"grid", "ring"},
+                   "grid: the cubic lattice of count spheres; ring: count[0] spheres (count[1] = "
+                   "count[2] = 1) on a horizontal circle (normal to gravity) of radius "
+                   "scene.ring_radius centred at scene.origin, the first on the side of +x; "
+                   "neighbours may start overlapping"),
               ints("scene.count", {p.count[0], p.count[1], p.count[2]}, 3, within(1, 1000),
-                   "spheres along x, y and z"),
+                   "spheres along x, y and z (ring: [count, 1, 1])"),
               real("scene.radius", p.radius, "m", above(0), "radius of each sphere"),
               real("scene.gap", p.gap, "1", at_least(0),
                    "space left between neighbours, as a fraction of the diameter"),
-              vec3("scene.origin", p.origin, "m", kAny, "centre of the first sphere (minimum corner)"),
+              vec3("scene.origin", p.origin, "m", kAny,
+                   "centre of the first sphere (minimum corner; grid) or of the circle (ring)"),
+              real("scene.ring_radius", p.ring_radius, "m", above(0),
+                   "ring: radius of the circle of centres (centre distance of neighbours "
+                   "2 ring_radius sin(pi / count))"),
               real("scene.mass", p.mass, "kg", above(0), "mass of each sphere"),
               real("scene.jitter", p.jitter, "m", at_least(0),
-                   "each centre displaced by a uniform random offset in [-jitter, jitter] per axis"),
+                   "each centre displaced by a uniform random offset in [-jitter, jitter] per axis "
+                   "(grid: below radius * gap)"),
               integer("scene.seed", static_cast<std::int64_t>(p.seed), at_least(0),
                       "seed of the jitter (deterministic)"),
               boolean("scene.particle_contact", true, "contacts between the spheres"),
@@ -419,15 +430,17 @@ const std::vector<KeySpec>& common_keys() {
              "simulated time; steps = round(duration / dt)"),
         text("solver.name", so.name, solver_names(),
              "solver: pbd-seed (the seed article's listing), pbd (Mueller et al. 2007), xpbd "
-             "(Macklin et al. 2016), or a reference integrator ref-* (`pbdbench list`)"),
+             "(Macklin et al. 2016), force-symplectic (explicit symplectic Euler, penalty "
+             "contacts), or a reference integrator ref-* (`pbdbench list`)"),
         integer("solver.iterations", so.iterations, within(1, 100000),
                 "projection sweeps per substep"),
         integer("solver.substeps", so.substeps, within(1, 100000),
                 "substeps per step (Macklin et al. 2019)"),
         text("solver.order", to_string(so.order), order_names(),
-             "order of a sweep: sequential, reversed, shuffled, colored (Gauss-Seidel) or jacobi"),
+             "order of a sweep: sequential, reversed, shuffled, colored, grouped_shuffled, "
+             "bottom_up (Gauss-Seidel) or jacobi (docs/solvers.md)"),
         integer("solver.shuffle_seed", static_cast<std::int64_t>(so.shuffle_seed), at_least(0),
-                "seed of the shuffled order"),
+                "seed of the shuffled and grouped_shuffled orders"),
         real("solver.jacobi_relaxation", so.jacobi_relaxation, "1", above_upto(0, 2),
              "relaxation omega of the jacobi order"),
         boolean("solver.jacobi_averaging", so.jacobi_averaging,
@@ -440,6 +453,11 @@ const std::vector<KeySpec>& common_keys() {
              "pbd: damping of the motion relative to the rigid modes (Mueller et al. 2007, sec. 3.5)"),
         boolean("solver.xpbd.residuals", so.xpbd_residuals,
                 "xpbd: compute the residuals g and h at the end of each step"),
+        real("solver.force.contact_stiffness", so.force_contact_stiffness, "N/m", above(0),
+             "force-symplectic: penalty stiffness k_c of a contact, force k_c (-C) while C < 0"),
+        real("solver.force.contact_damping", so.force_contact_damping, "N s/m", at_least(0),
+             "force-symplectic: contact damping d_c, force -d_c v_n on the relative normal "
+             "velocity while C < 0 (approaching or separating; the contact force never pulls)"),
         real("solver.seed.damping", so.seed_damping, "1", within(0, 1),
              "pbd-seed: velocity damping factor alpha of step 4"),
         boolean("solver.seed.damping_rescale", so.seed_damping_rescale,
@@ -452,6 +470,26 @@ const std::vector<KeySpec>& common_keys() {
              "pbd-seed: restitution of the listing's collision response"),
         strings("solver.seed.fixes", so.seed_fixes, seed_departure_ids(),
                 "pbd-seed: ids of the departures from Mueller et al. 2007 to correct"),
+        text("solver.seed.iteration_schedule", so.seed_iteration_schedule,
+             {"fixed", "dynamic", "mixed"},
+             "pbd-seed: sweeps per substep: fixed (solver.iterations), dynamic (article 4.1: 10 on "
+             "the run's first step, then 3, or 5 when the fastest particle is faster than "
+             "fast_speed) or mixed (5.3: 1 when the fastest particle is faster than fast_speed, "
+             "else 3); speeds at the start of the step"),
+        real("solver.seed.fast_speed", so.seed_fast_speed, "m/s", above(0),
+             "pbd-seed: the speed above which a particle is fast (iteration_schedule, "
+             "dynamic_inverse_mass)"),
+        text("solver.seed.backup", so.seed_backup, {"before_forces", "after_damping"},
+             "pbd-seed: where old_pos is backed up: before_forces (step 1, the listing) or "
+             "after_damping (after step 4, the placement article 3.1a warns against: step 5 then "
+             "sets every velocity to 0)"),
+        boolean("solver.seed.dynamic_inverse_mass", so.seed_dynamic_inverse_mass,
+                "pbd-seed: article 4.2, each step every dynamic particle's inverse mass is 0.1 "
+                "(1/kg) when it is faster than fast_speed, else 0.3; pinned stay 0"),
+        boolean("solver.seed.graded_inverse_mass", so.seed_graded_inverse_mass,
+                "pbd-seed: article 4.2, inverse masses graded from the pins: 0.3 min(1, d / d_c) "
+                "(1/kg), d the hop distance from the nearest pin over constraint edges, d_c half "
+                "the largest (at least 1); needs a pin"),
         real("solver.ref.rtol", so.ref_rtol, "1", within_open(0, 1),
              "reference: relative tolerance of the adaptive integrators and of every Newton solve"),
         real("solver.ref.atol", so.ref_atol, "m", above(0),
@@ -500,6 +538,38 @@ const std::vector<KeySpec>& common_keys() {
              "a run has exploded when its extent exceeds this times the initial extent (at least 1 mm)"),
         real("limits.max_distance", lim.max_distance, "m", above(0),
              "a run has exploded when a particle is farther than this from the origin"),
+        // Scene defects for failure studies (config/scenes.cpp, apply_defects): applied to the
+        // model and initial state of any scene kind after it is built. Defaults: no defect.
+        ints("defects.zero_rest_length", {}, 0, at_least(0),
+             "indices of distance constraints whose rest length becomes 0 (other kinds refused)"),
+        real("defects.rest_scale", 1.0, "1", above(0),
+             "rest lengths of the distance constraints of defects.rest_scale_constraints are "
+             "multiplied by this (100: a cm/m unit mismatch)"),
+        ints("defects.rest_scale_constraints", {}, 0, at_least(0),
+             "indices of the distance constraints defects.rest_scale applies to; empty: every "
+             "distance constraint"),
+        ints("defects.inverse_mass_particles", {}, 0, at_least(0),
+             "particles whose inverse mass is set to defects.inverse_mass_values (distinct); one "
+             "given a non-zero value loses its pin, so that its inverse mass alone holds it"),
+        floats("defects.inverse_mass_values", {}, 0, "1/kg", kAny,
+               "inverse masses of defects.inverse_mass_particles, one each: any finite value, "
+               "negative (-1 for a pinned particle) and huge (1e6) on purpose"),
+        ints("defects.flip_tets", {}, 0, at_least(0),
+             "tets whose volume constraints get their first two particles swapped, the rest "
+             "volume kept positive (C = -V - V0 at rest: an inconsistently oriented listing)"),
+        integer("defects.flip_every", 0, at_least(0),
+                "also flip tets 0, k, 2k, ... with k = this; 0: none"),
+        real("defects.initial_scale", 1.0, "1", above(0),
+             "initial positions of the dynamic particles (inv_mass != 0) scaled by this about "
+             "their centroid"),
+        real("defects.initial_jitter", 0.0, "m", at_least(0),
+             "each dynamic particle's initial position displaced by a seeded uniform random "
+             "offset in [-jitter, jitter] per axis"),
+        integer("defects.initial_seed", 0, at_least(0), "seed of defects.initial_jitter"),
+        integer("relax.frames", 0, at_least(0),
+                "relax the initial configuration over this many steps: the solver's rest values "
+                "go linearly from the initial state's (C + rest) to the model's (fraction "
+                "(k+1)/N at step k); pbd, xpbd and pbd-seed only; 0: none"),
     };
   }();
   return keys;

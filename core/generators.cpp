@@ -5,6 +5,7 @@
 #include "core/generators.hpp"
 
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -227,6 +228,36 @@ double uniform01(std::mt19937_64& rng) {
   return static_cast<double>(rng() >> 11) * 0x1.0p-53;
 }
 
+// The ring layout of add_packed_spheres (its common fields already checked).
+ParticleRange add_ring_spheres(Model& model, const PackedSpheresSpec& spec) {
+  if (spec.count[1] != 1 || spec.count[2] != 1)
+    throw std::invalid_argument("PackedSpheresSpec.count = [" + std::to_string(spec.count[0]) +
+                                ", " + std::to_string(spec.count[1]) + ", " +
+                                std::to_string(spec.count[2]) +
+                                "]: the ring layout takes count[0] spheres, count[1] and count[2] "
+                                "must be 1");
+  require_positive("PackedSpheresSpec.ring_radius", spec.ring_radius);
+  require_finite("PackedSpheresSpec.up", spec.up);
+  if (!(spec.up.norm() > 0.0)) throw std::invalid_argument("PackedSpheresSpec.up must be non-zero");
+  const Vec3 up = spec.up.normalized();
+  Vec3 e1 = Vec3::UnitX() - Vec3::UnitX().dot(up) * up;
+  if (e1.norm() < 1e-9) e1 = Vec3::UnitZ() - Vec3::UnitZ().dot(up) * up;  // up along x
+  e1.normalize();
+  const Vec3 e2 = up.cross(e1);
+  const int n = spec.count[0];
+  Points x(n, 3);
+  std::mt19937_64 rng(spec.seed);
+  for (int k = 0; k < n; ++k) {
+    const double a = 2.0 * std::numbers::pi * k / n;
+    Vec3 p = spec.origin + spec.ring_radius * (std::cos(a) * e1 + std::sin(a) * e2);
+    for (int i = 0; i < 3; ++i) p[i] += spec.jitter * (2.0 * uniform01(rng) - 1.0);
+    x.row(k) = p.transpose();
+  }
+  const int begin =
+      append_particles(model, x, std::vector<double>(static_cast<size_t>(n), spec.mass), spec.radius);
+  return {begin, begin + n};
+}
+
 }  // namespace
 
 ParticleRange add_packed_spheres(Model& model, const PackedSpheresSpec& spec) {
@@ -237,6 +268,7 @@ ParticleRange add_packed_spheres(Model& model, const PackedSpheresSpec& spec) {
   require_finite("PackedSpheresSpec.origin", spec.origin);
   require_positive("PackedSpheresSpec.mass", spec.mass);
   require_non_negative("PackedSpheresSpec.jitter", spec.jitter);
+  if (spec.layout == SpheresLayout::Ring) return add_ring_spheres(model, spec);
   const double spacing = 2.0 * spec.radius * (1.0 + spec.gap);
   // Two neighbours along an axis come closest when each moves `jitter` towards the other.
   if (!(spacing > 2.0 * spec.radius + 2.0 * spec.jitter))

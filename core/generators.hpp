@@ -87,17 +87,28 @@ struct TetBlockSpec {
 };
 ParticleRange add_tet_block(Model& model, const TetBlockSpec& spec);
 
-// count[0] x count[1] x count[2] spheres of `radius` on a cubic lattice of spacing
-// 2 radius (1 + gap) from `origin`, each displaced by a uniform random jitter in
-// [-jitter, jitter] m per axis drawn from `seed` (deterministic). Each has `mass`.
+// Grid layout: count[0] x count[1] x count[2] spheres of `radius` on a cubic lattice of spacing
+// 2 radius (1 + gap) from `origin` (the centre of the first sphere); the jitter must stay below
+// radius gap, so that no two spheres start overlapping.
+// Ring layout: count[0] spheres (count[1] = count[2] = 1) with centres on a circle of
+// `ring_radius` around `origin`, in the plane normal to `up`: sphere k at angle 2 pi k / count[0]
+// from e1, origin + ring_radius (cos a e1 + sin a e2), with e1 the unit projection of +x on that
+// plane (of +z when up is along x) and e2 = up x e1. Neighbours may overlap: the layout exists to
+// start in penetration (centre distance 2 ring_radius sin(pi / count[0])).
+// Either way each centre is then displaced by a uniform random jitter in [-jitter, jitter] m per
+// axis drawn from `seed` (deterministic). Each sphere has `mass`.
+enum class SpheresLayout : std::uint8_t { Grid, Ring };
 struct PackedSpheresSpec {
   std::array<int, 3> count{5, 5, 5};
   double radius = 0.05;        // m
-  double gap = 0.05;           // fraction of the diameter left between neighbours
-  Vec3 origin = Vec3::Zero();  // m, centre of the first sphere
+  double gap = 0.05;           // fraction of the diameter left between neighbours (grid)
+  Vec3 origin = Vec3::Zero();  // m, centre of the first sphere (grid) or of the ring
   double mass = 0.1;           // kg each
   double jitter = 0.0;         // m
   std::uint64_t seed = 1;
+  SpheresLayout layout = SpheresLayout::Grid;
+  double ring_radius = 0.1;    // m, > 0 (ring)
+  Vec3 up = Vec3::UnitY();     // the ring's axis (ring; non-zero, normalised)
 };
 ParticleRange add_packed_spheres(Model& model, const PackedSpheresSpec& spec);
 

@@ -70,9 +70,12 @@ void check_coefficients(Problems& out, const std::string& name, double restituti
 
 }  // namespace
 
-std::vector<ModelProblem> check_model(const Model& model) {
+std::vector<ModelProblem> check_model(const Model& model, const std::vector<int>& free_inverse_mass) {
   Problems out;
   const int n = model.particle_count();
+  auto free_mass = [&](int i) {
+    return std::find(free_inverse_mass.begin(), free_inverse_mass.end(), i) != free_inverse_mass.end();
+  };
 
   if (!model.gravity.allFinite()) out.add("gravity " + vec(model.gravity) + " is not finite");
 
@@ -92,7 +95,7 @@ std::vector<ModelProblem> check_model(const Model& model) {
     if (!sizes_ok) continue;
     const double w = model.inv_mass[static_cast<size_t>(i)];
     if (!std::isfinite(w)) out.add(name + ": inverse mass " + num(w) + " is not finite");
-    else if (w < 0.0) out.add(name + ": inverse mass " + num(w) + " is negative");
+    else if (w < 0.0 && !free_mass(i)) out.add(name + ": inverse mass " + num(w) + " is negative");
     const double r = model.radius[static_cast<size_t>(i)];
     if (!(r > 0.0) || !std::isfinite(r)) out.add(name + ": radius " + num(r) + " is not positive and finite");
   }

@@ -19,7 +19,9 @@ struct ModelProblem {
 // damping in range, degenerate tets (|volume| tiny relative to their edge lengths) and triangles,
 // attached particles with inv_mass 0, motion and collider indices valid, plane normals non-zero,
 // sphere radii > 0, finite gravity.
-std::vector<ModelProblem> check_model(const Model& model);
+// `free_inverse_mass`: particles whose inverse mass was set on purpose (a scene defect,
+// defects.inverse_mass_*): any finite value is accepted for them, negative included.
+std::vector<ModelProblem> check_model(const Model& model, const std::vector<int>& free_inverse_mass = {});
 
 // Every problem of a state for this model: sizes, finite values.
 std::vector<ModelProblem> check_state(const Model& model, const State& state);

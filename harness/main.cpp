@@ -6,6 +6,7 @@
 //   2  bad input (usage, scenario or sweep file, --set override)
 //   3  run exploded (run only: the file records where)
 //   4  run interrupted (SIGINT/SIGTERM: the file is marked incomplete)
+//   5  claims --expect: a verdict differs from the record
 // compare: 0 done, 1 a file could not be read or written or the plot failed, 2 bad input (runs
 // of different scenes, a bad --until).
 #include <signal.h>
@@ -25,6 +26,7 @@
 
 #include <fmt/format.h>
 
+#include "claims/command.hpp"
 #include "config/config.hpp"
 #include "harness/compare.hpp"
 #include "harness/converge.hpp"
@@ -40,7 +42,8 @@ using namespace pbdbench;
 
 namespace {
 
-constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitExploded = 3, kExitInterrupted = 4;
+constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitExploded = 3, kExitInterrupted = 4,
+              kExitVerdictChanged = 5;
 
 std::atomic<bool> g_stop{false};
 
@@ -292,6 +295,31 @@ int cmd_converge(const std::string& scenario, const std::vector<std::string>& se
   return kExitOk;
 }
 
+// The claims' experiments, the report, its figures and the verdict records.
+int cmd_claims(claims::ClaimsCommand command, bool plots, int argc, char** argv) {
+  for (int i = 0; i < argc; ++i) {
+    std::string a = argv[i];
+    if (i == 0) a = fs::path(a).filename().string();
+    command.command_line += (i ? " " : "") + a;
+  }
+  const claims::ClaimsOutcome outcome = claims::run_claims(command, std::cout, std::cerr);
+  if (plots) {
+    const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_claims.py";
+    const int rc = run_python(script, {outcome.out.string()});
+    if (rc != 0) {
+      std::cerr << "pbdbench: the figures were not drawn (" << script << " exited " << rc << ")\n";
+      return kExitFailure;
+    }
+  }
+  if (!outcome.differences.empty()) {
+    std::cerr << "pbdbench: " << outcome.differences.size() << " verdict(s) differ from " << command.expect
+              << ":\n";
+    for (const std::string& d : outcome.differences) std::cerr << "  " << d << "\n";
+    return kExitVerdictChanged;
+  }
+  return kExitOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -367,6 +395,26 @@ int main(int argc, char** argv) {
   converge->add_option("--out", out, "Convergence file (HDF5) to write")->required();
   converge->add_flag("--quiet", quiet, "No progress lines on stderr");
 
+  claims::ClaimsCommand claims_cmd;
+  std::string tier = "full";
+  bool no_plots = false;
+  auto* claims_sub = app.add_subcommand(
+      "claims", "Run the seed article's claims as experiments and write the report with verdicts");
+  claims_sub->add_option("ids", claims_cmd.ids, "Claim ids (default: every claim), e.g. S5.4");
+  claims_sub->add_option("--tier", tier, "quick (seconds, the test suite) or full (the report)")
+      ->check(CLI::IsMember({"quick", "full"}));
+  claims_sub->add_option("--out", claims_cmd.out,
+                         "Report folder (default paper/claims for every claim in the full tier, "
+                         "else results/claims/<tier>)");
+  claims_sub->add_option("--runs", claims_cmd.runs, "Run files folder (default results/claims/<tier>/runs)");
+  claims_sub->add_option("--experiments", claims_cmd.experiments,
+                         "Folder of experiment files (default claims/experiments)");
+  claims_sub->add_flag("--force", claims_cmd.force, "Run again even when current run files exist");
+  claims_sub->add_option("--record", claims_cmd.record, "Write every part's verdict to this file");
+  claims_sub->add_option("--expect", claims_cmd.expect,
+                         "Compare the verdicts with this record; exit 5 when one differs");
+  claims_sub->add_flag("--no-plots", no_plots, "Do not draw the figures");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -382,6 +430,10 @@ int main(int argc, char** argv) {
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);
+    if (*claims_sub) {
+      claims_cmd.tier = tier == "quick" ? claims::Tier::Quick : claims::Tier::Full;
+      return cmd_claims(claims_cmd, !no_plots, argc, argv);
+    }
     if (*series) {
       if (markdown) {
         std::cout << series_markdown();
@@ -394,6 +446,9 @@ int main(int argc, char** argv) {
       return kExitOk;
     }
   } catch (const config::ConfigError& e) {
+    std::cerr << "pbdbench: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const claims::ExperimentError& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const CompareInputError& e) {

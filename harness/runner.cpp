@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "harness/relax.hpp"
 #include "metrics/shadow.hpp"
 #include "solvers/solver.hpp"
 
@@ -30,10 +31,29 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   const config::RunOptions run = config::run_options(config);
   const Model& model = scene.model;
   State state = std::move(scene.initial);
+  const std::string shadow_name = config.get_string("shadow.solver");
+  // relax.frames (harness/relax.hpp): the solver steps a working copy of the model whose rest
+  // values go from the initial state's to the model's over the first `relax_frames` steps.
+  const long relax_frames = static_cast<long>(config.get_int("relax.frames"));
+  if (relax_frames > 0) {
+    const config::Source source = config.at("relax.frames").source.file.empty()
+                                      ? config::Source{config.file.string(), 0}
+                                      : config.at("relax.frames").source;
+    if (!solver_supports_relaxation(solver_opts.name))
+      throw config::ConfigError(
+          source, "relax.frames",
+          "relax.frames = " + std::to_string(relax_frames) + " needs a solver that reads the rest "
+          "values from the model at every step (pbd, xpbd, pbd-seed); " + solver_opts.name +
+          " builds its energy model once");
+    if (!shadow_name.empty())
+      throw config::ConfigError(
+          source, "relax.frames",
+          "relax.frames = " + std::to_string(relax_frames) + " cannot be combined with a shadow "
+          "(shadow.solver = '" + shadow_name + "' builds its energy model once)");
+  }
   auto solver = make_solver(solver_opts, model);
   // The shadow: a global solver stepping a copy of the state from the same start.
   std::unique_ptr<Solver> shadow;
-  const std::string shadow_name = config.get_string("shadow.solver");
   const long shadow_every = static_cast<long>(config.get_int("shadow.every"));
   if (!shadow_name.empty()) {
     SolverOptions shadow_opts = solver_opts;
@@ -44,6 +64,13 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       throw config::ConfigError(config::Source{config.file.string(), 0}, "shadow.solver",
                                 e.what());
     }
+  }
+
+  Model working;
+  std::vector<double> relax_start;
+  if (relax_frames > 0) {
+    working = model;
+    relax_start = initial_rest_values(model, state.x);
   }
 
   RunOutcome outcome;
@@ -66,15 +93,25 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   writer.append_frame(state.time, state.x);
 
   State shadow_state;
+  // The velocities after the two previous steps (the initial ones before step 1), for
+  // velocity_hf_rms from row 2 on.
+  Points v_previous = state.v, v_before_previous;
   try {
     for (long k = 1; k <= outcome.steps_planned; ++k) {
       const bool shadowed = shadow && (k - 1) % shadow_every == 0;
       if (shadowed) shadow_state = state;
+      const bool relaxing = k <= relax_frames;
+      if (relaxing)
+        blend_rest_values(model, relax_start,
+                          static_cast<double>(k) / static_cast<double>(relax_frames), working);
       const auto t0 = Clock::now();
-      const StepReport report = solver->step(model, state, run.dt);
+      const StepReport report = solver->step(relaxing ? working : model, state, run.dt);
       const double wall = seconds_since(t0);
       outcome.solver_time += wall;
       sample = measure(model, state, baseline);
+      if (k >= 2) sample.velocity_hf_rms = velocity_hf_rms(model, state.v, v_previous, v_before_previous);
+      v_before_previous.swap(v_previous);
+      v_previous = state.v;
       ShadowSample shadow_sample;
       if (shadowed) {
         const auto ts = Clock::now();

@@ -3,6 +3,8 @@
 //   scene, solver, writer  <- config
 //   row 0: metrics of the initial state
 //   each step: solver.step(model, state, dt) -> metrics -> one row (-> a frame every k steps)
+//              (the first relax.frames steps give the solver a relaxed copy of the model:
+//              harness/relax.hpp; the metrics always measure against the model itself)
 //              explosion check: NaN, Inf, speed or extent beyond the limits -> stop, "exploded"
 //   finish: "complete", "exploded", "failed" (an exception), or "incomplete" (interrupted)
 #pragma once

@@ -15,6 +15,7 @@
 #include <sstream>
 #include <toml++/toml.h>
 
+#include "config/toml_text.hpp"
 #include "runfile/build_info.hpp"
 #include "runfile/run_file.hpp"
 
@@ -28,65 +29,16 @@ using config::ConfigError;
 using config::Source;
 namespace fs = std::filesystem;
 
+using config::FlatEntry;
+
 Source at(const fs::path& file, const toml::source_region& region) {
-  return {file.string(), static_cast<int>(region.begin.line)};
+  return config::source_of(file, region);
 }
-
-// A TOML value as text that is both valid TOML and valid JSON (strings double-quoted and
-// escaped, floats in shortest round-trip form with a decimal point or exponent).
 std::string value_text(const toml::node& node, const fs::path& file) {
-  if (auto s = node.as_string()) {
-    std::string out = "\"";
-    for (char c : s->get()) {
-      switch (c) {
-        case '"': out += "\\\""; break;
-        case '\\': out += "\\\\"; break;
-        case '\n': out += "\\n"; break;
-        case '\t': out += "\\t"; break;
-        default: out += c;
-      }
-    }
-    return out + "\"";
-  }
-  if (auto i = node.as_integer()) return std::to_string(i->get());
-  if (auto b = node.as_boolean()) return b->get() ? "true" : "false";
-  if (auto f = node.as_floating_point()) {
-    const double v = f->get();
-    if (!std::isfinite(v))
-      throw ConfigError(at(file, node.source()), "", "a sweep value must be finite");
-    char buf[64];
-    auto res = std::to_chars(buf, buf + sizeof buf, v);
-    std::string out(buf, res.ptr);
-    if (out.find_first_of(".e") == std::string::npos) out += ".0";
-    return out;
-  }
-  if (auto a = node.as_array()) {
-    std::string out = "[";
-    for (size_t k = 0; k < a->size(); ++k) {
-      if (k > 0) out += ", ";
-      out += value_text(*a->get(k), file);
-    }
-    return out + "]";
-  }
-  throw ConfigError(at(file, node.source()), "", "a sweep value must be a string, number, boolean or array");
+  return config::toml_value_text(node, file);
 }
-
-struct FlatEntry {
-  std::string path;
-  const toml::node* node;
-  int line;
-};
-
-// Flattens nested tables into dotted paths, in the order the keys appear in the file.
 void flatten(const toml::table& table, const std::string& prefix, std::vector<FlatEntry>& out) {
-  for (auto&& [key, node] : table) {
-    const std::string path = prefix.empty() ? std::string(key.str()) : prefix + "." + std::string(key.str());
-    if (auto sub = node.as_table())
-      flatten(*sub, path, out);
-    else
-      out.push_back({path, &node, static_cast<int>(key.source().begin.line)});
-  }
-  std::stable_sort(out.begin(), out.end(), [](const FlatEntry& a, const FlatEntry& b) { return a.line < b.line; });
+  for (FlatEntry& e : config::flatten_table(table, prefix)) out.push_back(e);
 }
 
 std::string sanitize(const std::string& text) {

@@ -160,11 +160,85 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     s.penetration_max = kNaN;
   }
 
+  // Failure detectors.
+  s.height_min = height_min(model, state);
+  const SunkParticles sunk = sunk_particles(model, state);
+  s.sunk_count = sunk.count;
+  s.sunk_depth = sunk.depth;
+
   // Observables of the scene.
   s.tip_displacement = tip_displacement(model, state);
   s.support_force = support_force(model, state);
   s.pendulum_angle = pendulum_angle(model, state);
   return s;
+}
+
+double height_min(const Model& model, const State& state) {
+  const Vec3 up = up_direction(model);
+  double lowest = kNaN;
+  for (int i = 0; i < model.particle_count(); ++i) {
+    if (model.inv_mass[static_cast<size_t>(i)] == 0.0) continue;
+    const Vec3 x = state.x.row(i);
+    if (!x.allFinite()) return kNaN;
+    const double h = up.dot(x);
+    if (std::isnan(lowest) || h < lowest) lowest = h;
+  }
+  return lowest;
+}
+
+SunkParticles sunk_particles(const Model& model, const State& state) {
+  SunkParticles out;
+  const Vec3 up = up_direction(model);
+  std::vector<Vec3> centers;
+  for (const SphereCollider& sphere : model.spheres)
+    centers.push_back(sphere_center(model, sphere, state.time));
+  for (int i = 0; i < model.particle_count(); ++i) {
+    if (model.inv_mass[static_cast<size_t>(i)] == 0.0) continue;
+    const Vec3 x = state.x.row(i);
+    if (!x.allFinite()) {
+      out.depth = kNaN;
+      continue;
+    }
+    double deepest = 0.0;  // of this particle, over the colliders
+    bool sunk = false;
+    for (const PlaneCollider& p : model.planes) {
+      const double nn = p.normal.norm();
+      const double signed_distance = (p.normal.dot(x) + p.offset) / nn;
+      if (signed_distance < 0.0) {
+        sunk = true;
+        deepest = std::max(deepest, -signed_distance);
+      }
+    }
+    for (size_t k = 0; k < model.spheres.size(); ++k) {
+      const SphereCollider& sphere = model.spheres[k];
+      const Vec3 d = x - centers[k];
+      const double r = d.norm();
+      double depth = 0.0;
+      switch (sphere.side) {
+        case SphereSide::Outside: depth = sphere.radius - r; break;
+        case SphereSide::Inside: depth = r - sphere.radius; break;
+        case SphereSide::Bowl: depth = d.dot(up) < 0.0 ? r - sphere.radius : 0.0; break;
+      }
+      if (depth > 0.0) {
+        sunk = true;
+        deepest = std::max(deepest, depth);
+      }
+    }
+    if (sunk) ++out.count;
+    if (!std::isnan(out.depth)) out.depth = std::max(out.depth, deepest);
+  }
+  return out;
+}
+
+double velocity_hf_rms(const Model& model, const Points& v_n, const Points& v_n1, const Points& v_n2) {
+  double sum = 0.0;
+  int dynamic = 0;
+  for (int i = 0; i < model.particle_count(); ++i) {
+    if (model.inv_mass[static_cast<size_t>(i)] == 0.0) continue;
+    sum += (v_n.row(i) - 2.0 * v_n1.row(i) + v_n2.row(i)).squaredNorm();
+    ++dynamic;
+  }
+  return dynamic == 0 ? kNaN : std::sqrt(sum / dynamic) / 4.0;
 }
 
 Vec3 tip_displacement(const Model& model, const State& state) {

@@ -61,6 +61,14 @@ struct Sample {
   double penetration_max = 0.0;  // m, deepest penetration (0 when none)
   int penetration_count = 0;     // contacts in penetration
 
+  // Failure detectors (see the functions below). height_min and sunk_* are NaN / 0 when the
+  // state is not finite; velocity_hf_rms needs two earlier velocities, which only the runner
+  // has: measure() leaves it NaN and the runner fills it from row 2 on.
+  double height_min = std::numeric_limits<double>::quiet_NaN();  // m
+  int sunk_count = 0;                                            // particles
+  double sunk_depth = 0.0;                                       // m
+  double velocity_hf_rms = std::numeric_limits<double>::quiet_NaN();  // m/s
+
   // Explosion indicators.
   double max_speed = 0.0;  // m/s over all particles (NaN when a velocity is not finite)
   double extent = 0.0;     // m, max distance of a particle from the current centroid
@@ -96,6 +104,35 @@ Vec3 support_force(const Model& model, const State& state);
 // component of d out of the plane of g^ and +x is ignored. NaN without a bob, without gravity, or
 // when gravity is along x.
 double pendulum_angle(const Model& model, const State& state);
+
+// The lowest dynamic particle (inv_mass != 0): min_i up . x_i (m), up = up_direction(model)
+// (-gravity / |gravity|, or +y without gravity). A cloth that has sunk below a ground y = 0
+// shows a negative value whatever its collider says. NaN without dynamic particles or when a
+// dynamic position is not finite.
+double height_min(const Model& model, const State& state);
+
+// Dynamic particles (inv_mass != 0) whose centre is on the forbidden side of a collider's
+// surface, the particle radius ignored (unlike penetration_*, which counts radius overlaps):
+//   plane:          (n . x + offset) / |n| < 0                       depth -(n . x + offset) / |n|
+//   sphere outside: |x - c(t)| < R                                   depth R - |x - c(t)|
+//   sphere inside:  |x - c(t)| > R                                   depth |x - c(t)| - R
+//   bowl:           as inside, only where (x - c(t)) . up < 0 (core/contacts.hpp)
+// count: particles sunk into at least one collider; depth: the largest depth over particles and
+// colliders (m, 0 when none). A particle whose position is not finite is not counted, and makes
+// depth NaN.
+struct SunkParticles {
+  int count = 0;
+  double depth = 0.0;  // m
+};
+SunkParticles sunk_particles(const Model& model, const State& state);
+
+// The high-frequency content of the velocities ("jitter"), from the velocities after three
+// consecutive steps v_n, v_{n-1}, v_{n-2} (each n x 3, m/s):
+//   sqrt( mean over dynamic particles (inv_mass != 0) of |v_n - 2 v_{n-1} + v_{n-2}|^2 ) / 4.
+// The second difference is 4a for a velocity alternating +a, -a, +a, hence the 1/4: that reads
+// |a|; it is 0 for a velocity that changes linearly in time (constant acceleration). NaN
+// without dynamic particles.
+double velocity_hf_rms(const Model& model, const Points& v_n, const Points& v_n1, const Points& v_n2);
 
 // When a run counts as exploded. Keys of the [limits] table.
 struct ExplosionLimits {

@@ -76,6 +76,24 @@ const std::array kSeries = {
     SeriesSpec{"penetration_count", "1", "contacts in penetration", 1, true,
                PBDBENCH_SAMPLE(penetration_count)},
 
+    // Failure detectors (metrics/metrics.hpp: height_min, sunk_particles, velocity_hf_rms).
+    SeriesSpec{"height_min", "m",
+               "min over dynamic particles (inv_mass != 0) of up . x, up = -gravity/|gravity| (+y "
+               "without gravity): below 0 is below a ground y = 0 (NaN without dynamic particles)",
+               1, true, PBDBENCH_SAMPLE(height_min)},
+    SeriesSpec{"sunk_count", "1",
+               "dynamic particles whose centre is on the forbidden side of a collider's surface "
+               "(radius ignored, unlike penetration_count)",
+               1, true, PBDBENCH_SAMPLE(sunk_count)},
+    SeriesSpec{"sunk_depth", "m",
+               "largest depth of a dynamic particle's centre past a collider's surface (0 when "
+               "none)",
+               1, true, PBDBENCH_SAMPLE(sunk_depth)},
+    SeriesSpec{"velocity_hf_rms", "m/s",
+               "jitter: sqrt(mean over dynamic particles of |v_n - 2 v_n-1 + v_n-2|^2) / 4, v_n "
+               "the velocities after step n (an alternating +a/-a reads |a|; NaN in rows 0 and 1)",
+               1, true, PBDBENCH_SAMPLE(velocity_hf_rms)},
+
     // Explosion indicators.
     SeriesSpec{"max_speed", "m/s", "max particle speed (NaN when a velocity is not finite)", 1,
                true, PBDBENCH_SAMPLE(max_speed)},

@@ -11,8 +11,8 @@ namespace pbdbench {
 
 namespace {
 
-constexpr std::array<const char*, 5> kOrderNames = {"sequential", "reversed", "shuffled",
-                                                    "colored", "jacobi"};
+constexpr std::array<const char*, kProjectionOrderCount> kOrderNames = {
+    "sequential", "reversed", "shuffled", "colored", "jacobi", "grouped_shuffled", "bottom_up"};
 
 template <class T>
 std::string out_of_range(const char* field, T value, const char* relation, T bound) {
@@ -68,12 +68,28 @@ std::string SolverOptions::validate() const {
   if (!(pbd_velocity_damping >= 0.0 && pbd_velocity_damping <= 1.0))
     return "solver.pbd.velocity_damping = " + std::to_string(pbd_velocity_damping) +
            " is outside [0, 1]";
+  if (!(force_contact_stiffness > 0.0) || !std::isfinite(force_contact_stiffness))
+    return out_of_range("solver.force.contact_stiffness", force_contact_stiffness, "not above", 0.0);
+  if (!(force_contact_damping >= 0.0) || !std::isfinite(force_contact_damping))
+    return out_of_range("solver.force.contact_damping", force_contact_damping, "below the minimum",
+                        0.0);
   if (!(seed_damping >= 0.0 && seed_damping <= 1.0))
     return "solver.seed.damping = " + std::to_string(seed_damping) + " is outside [0, 1]";
   if (!(seed_reference_dt > 0.0) || !std::isfinite(seed_reference_dt))
     return out_of_range("solver.seed.reference_dt", seed_reference_dt, "not above", 0.0);
   if (!(seed_restitution >= 0.0 && seed_restitution <= 1.0))
     return "solver.seed.restitution = " + std::to_string(seed_restitution) + " is outside [0, 1]";
+  if (seed_iteration_schedule != "fixed" && seed_iteration_schedule != "dynamic" &&
+      seed_iteration_schedule != "mixed")
+    return "solver.seed.iteration_schedule = '" + seed_iteration_schedule +
+           "' is not one of fixed, dynamic, mixed";
+  if (!(seed_fast_speed > 0.0) || !std::isfinite(seed_fast_speed))
+    return out_of_range("solver.seed.fast_speed", seed_fast_speed, "not above", 0.0);
+  if (seed_backup != "before_forces" && seed_backup != "after_damping")
+    return "solver.seed.backup = '" + seed_backup + "' is not one of before_forces, after_damping";
+  if (seed_dynamic_inverse_mass && seed_graded_inverse_mass)
+    return "solver.seed.dynamic_inverse_mass and solver.seed.graded_inverse_mass are both true: "
+           "each sets every inverse mass, choose one";
   if (!(ref_rtol > 0.0 && ref_rtol < 1.0))
     return "solver.ref.rtol = " + std::to_string(ref_rtol) + " is outside (0, 1)";
   if (!(ref_atol > 0.0) || !std::isfinite(ref_atol))

@@ -19,7 +19,24 @@ enum class ProjectionOrder : std::uint8_t {
   Jacobi,      // all corrections computed from the same positions, then applied, scaled by
                // jacobi_relaxation (and divided by each particle's constraint count when
                // jacobi_averaging)
+  GroupedShuffled,  // the seed article's 5.4 "constraint groups, shuffled every frame": the
+               // items are split into groups, the connected components of the graph in which
+               // two items are adjacent when they share a dynamic particle (inv_mass > 0);
+               // groups are visited in the order of their smallest item index, and within a
+               // group in a random permutation drawn once per step from shuffle_seed and the
+               // step index (the same in every sweep and substep of the step; Shuffled redraws
+               // one global permutation every sweep)
+  BottomUp,    // a support order, the practical stand-in for the article's 5.4 "topological
+               // ordering of the constraint dependency graph": when contacts form a cycle
+               // (A pushes into B, B into C, C into A) that graph has a cycle and no
+               // topological order exists. Instead the items are sorted by the height (along
+               // up = -gravity, +y without gravity) of their lowest dynamic particle at the
+               // start of the substep, lowest first, ties by index; items without a dynamic
+               // particle (they move nothing) come last
 };
+
+// The number of ProjectionOrder values (for tables of names).
+inline constexpr int kProjectionOrderCount = 7;
 
 const char* to_string(ProjectionOrder order);  // "sequential", "reversed", ...
 // Parses the names above; returns false when unknown.
@@ -31,7 +48,8 @@ const std::vector<std::string>& seed_departure_ids();
 
 // Keys shared by every PBD-family solver: [solver] table.
 struct SolverOptions {
-  std::string name = "xpbd";        // solver.name: "pbd-seed" | "pbd" | "xpbd"
+  std::string name = "xpbd";        // solver.name: "pbd-seed" | "pbd" | "xpbd" |
+                                    // "force-symplectic" | a reference or global solver
   int iterations = 10;              // solver.iterations: projection sweeps per substep, >= 1
   int substeps = 1;                 // solver.substeps: substeps per step (Macklin 2019), >= 1
   ProjectionOrder order = ProjectionOrder::Sequential;  // solver.order
@@ -49,6 +67,12 @@ struct SolverOptions {
   // [solver.xpbd]: Macklin et al. 2016 (the damping beta is per constraint, in the model).
   bool xpbd_residuals = true;  // solver.xpbd.residuals: compute g and h at the end of each step
 
+  // [solver.force]: force-symplectic, explicit symplectic Euler with penalty contacts
+  // (solvers/force_symplectic.hpp). Contact force F = max(0, k_c (-C) - d_c v_n) while C < 0.
+  double force_contact_stiffness = 1e4;  // solver.force.contact_stiffness: k_c, N/m, > 0
+  double force_contact_damping = 0.0;    // solver.force.contact_damping: d_c, N s/m, >= 0, on
+                                         // the relative normal velocity v_n (> 0 separating)
+
   // [solver.seed]: the seed article's listing (docs/seed-departures.md).
   double seed_damping = 0.98;          // solver.seed.damping: alpha of step 4, in [0, 1]
   bool seed_damping_rescale = false;   // solver.seed.damping_rescale: alpha^(dt/reference_dt) (4.4)
@@ -56,6 +80,22 @@ struct SolverOptions {
   double seed_reference_dt = 0.02;     // solver.seed.reference_dt: s, > 0, the dt alpha was tuned at
   double seed_restitution = 0.2;       // solver.seed.restitution: in [0, 1], listing 3.4
   std::vector<std::string> seed_fixes; // solver.seed.fixes: ids of departures to correct (D1, ...)
+  // The article's tuning options (docs/seed-departures.md, "tuning options from sections 4 and
+  // 5"); the defaults are the listing. "Speed" is |v| of a particle at the start of the step.
+  std::string seed_iteration_schedule = "fixed";  // solver.seed.iteration_schedule: "fixed"
+                                       // (iterations), "dynamic" (4.1: 10 on the first step of
+                                       // the run, then 3, or 5 when the fastest particle is faster
+                                       // than fast_speed) or "mixed" (5.3: 1 when the fastest
+                                       // particle is faster than fast_speed, else 3)
+  double seed_fast_speed = 1.0;        // solver.seed.fast_speed: m/s, > 0, "fast" above this
+  std::string seed_backup = "before_forces";  // solver.seed.backup: where old_pos is backed up:
+                                       // "before_forces" (step 1, the listing) or "after_damping"
+                                       // (3.1a's warned-against placement, after step 4)
+  bool seed_dynamic_inverse_mass = false;  // solver.seed.dynamic_inverse_mass: 4.2, each step a
+                                       // dynamic particle's inverse mass is 0.1 when it is faster
+                                       // than fast_speed, else 0.3 (pinned stay 0)
+  bool seed_graded_inverse_mass = false;   // solver.seed.graded_inverse_mass: 4.2, inverse masses
+                                       // graded from the pins, w_i = 0.3 min(1, d_i / d_c)
 
   // [solver.ref]: the reference integrators (reference/, docs/reference.md).
   double ref_rtol = 1e-8;             // solver.ref.rtol: relative tolerance of the adaptive

@@ -67,7 +67,7 @@ class PbdSolver final : public Solver {
       work_.v_before = v;
       timer.lap(report.time_predict);
 
-      find_substep_contacts(model, t_end, options_.contact_margin, ordering_, work_, report);
+      find_substep_contacts(model, t_end, options_.contact_margin, x, ordering_, work_, report);
       timer.lap(report.time_contacts);
 
       run_sweeps(model, options_, ordering_, state.step, s, nullptr, work_, report,

@@ -12,8 +12,16 @@
 // The listing works in float (D10): the state is copied to float at the start of a step and back
 // to double at its end (a float survives that round trip exactly). With "D10" fixed the very same
 // code runs in double. Substeps: the whole listing Step(dt / substeps) is repeated.
+//
+// The article's tuning options (solver.seed.iteration_schedule, backup, dynamic_inverse_mass,
+// graded_inverse_mass; solvers/pbd_seed.hpp) change how many sweeps a step makes, where step 1's
+// backup happens, and the inverse masses the listing sees; their defaults are the listing.
+#include "solvers/pbd_seed.hpp"
+
 #include <algorithm>
 #include <cmath>
+#include <deque>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -27,6 +35,70 @@
 #include "solvers/velocity_pass.hpp"
 
 namespace pbdbench {
+
+int seed_iterations(const SolverOptions& options, long step, double fastest) {
+  const bool fast = fastest > options.seed_fast_speed;
+  if (options.seed_iteration_schedule == "dynamic") {
+    if (step == 0) return 10;  // "the first frame: 10"
+    return fast ? 5 : 3;       // "then 3; 5 on large displacements"
+  }
+  if (options.seed_iteration_schedule == "mixed") return fast ? 1 : 3;  // 5.3
+  return options.iterations;
+}
+
+std::vector<double> seed_dynamic_inverse_masses(const Model& model, const Points& v,
+                                                double fast_speed) {
+  std::vector<double> w(model.inv_mass.size(), 0.0);
+  for (int i = 0; i < model.particle_count(); ++i)
+    if (model.inv_mass[static_cast<size_t>(i)] > 0.0)
+      w[static_cast<size_t>(i)] = v.row(i).norm() > fast_speed ? 0.1 : 0.3;
+  return w;
+}
+
+std::vector<double> seed_graded_inverse_masses(const Model& model) {
+  const int n = model.particle_count();
+  // Neighbours: every two particles of a constraint.
+  std::vector<std::vector<int>> adjacent(static_cast<size_t>(n));
+  for (const Constraint& c : model.constraints)
+    for (int a = 0; a < arity(c.kind); ++a)
+      for (int b = 0; b < arity(c.kind); ++b)
+        if (a != b)
+          adjacent[static_cast<size_t>(c.particles[static_cast<size_t>(a)])].push_back(
+              c.particles[static_cast<size_t>(b)]);
+  // Breadth-first search from every particle with inverse mass 0 at once.
+  const int unreached = std::numeric_limits<int>::max();
+  std::vector<int> d(static_cast<size_t>(n), unreached);
+  std::deque<int> queue;
+  for (int i = 0; i < n; ++i)
+    if (model.inv_mass[static_cast<size_t>(i)] == 0.0) {
+      d[static_cast<size_t>(i)] = 0;
+      queue.push_back(i);
+    }
+  if (queue.empty())
+    throw std::invalid_argument(
+        "solver.seed.graded_inverse_mass grades the inverse masses from the pinned particles "
+        "(inverse mass 0), and the model has none");
+  while (!queue.empty()) {
+    const int p = queue.front();
+    queue.pop_front();
+    for (int q : adjacent[static_cast<size_t>(p)])
+      if (d[static_cast<size_t>(q)] == unreached) {
+        d[static_cast<size_t>(q)] = d[static_cast<size_t>(p)] + 1;
+        queue.push_back(q);
+      }
+  }
+  int largest = 0;
+  for (int di : d)
+    if (di != unreached) largest = std::max(largest, di);
+  const double dc = std::max(1.0, largest / 2.0);
+  std::vector<double> w(static_cast<size_t>(n), 0.0);
+  for (int i = 0; i < n; ++i) {
+    if (!(model.inv_mass[static_cast<size_t>(i)] > 0.0)) continue;
+    const int di = d[static_cast<size_t>(i)];
+    w[static_cast<size_t>(i)] = di == unreached ? 0.3 : 0.3 * std::min(1.0, di / dc);
+  }
+  return w;
+}
 
 namespace {
 
@@ -88,8 +160,14 @@ class PbdSeedSolver final : public Solver {
         fix_(options.seed_fixes),
         particles_count_(model.particle_count()),
         constraints_(model.constraint_count()),
-        ordering_(model, options) {
+        ordering_(model, options),
+        backup_after_damping_(options.seed_backup == "after_damping"),
+        own_masses_(options.seed_dynamic_inverse_mass || options.seed_graded_inverse_mass) {
     if (fix_(2)) bodies_ = dynamic_bodies(model);
+    if (own_masses_) {
+      masses_ = model;
+      if (options.seed_graded_inverse_mass) masses_.inv_mass = seed_graded_inverse_masses(model);
+    }
   }
 
   std::string name() const override { return "pbd-seed"; }
@@ -101,6 +179,15 @@ class PbdSeedSolver final : public Solver {
     const double h = dt / options_.substeps;
     state.lambda.assign(model.constraints.size(), std::nan(""));  // no multipliers: no forces
     skipped_ = 0;
+    // The article's tuning options, from the velocities at the start of the step.
+    double fastest = 0.0;
+    for (int i = 0; i < particles_count_; ++i) fastest = std::max(fastest, state.v.row(i).norm());
+    const int iterations = seed_iterations(options_, state.step, fastest);
+    if (options_.seed_dynamic_inverse_mass)
+      masses_.inv_mass = seed_dynamic_inverse_masses(model, state.v, options_.seed_fast_speed);
+    // The model the listing sees: the given one, or (4.2) a copy of the one given at
+    // construction with the article's inverse masses.
+    const Model& seen = own_masses_ ? masses_ : model;
     // D10: the listing's float state (exact copies of float values survive the way back).
     particles_.resize(static_cast<size_t>(particles_count_));
     for (int i = 0; i < particles_count_; ++i) {
@@ -108,11 +195,11 @@ class PbdSeedSolver final : public Solver {
       p.pos = state.x.row(i).transpose().cast<Real>();
       p.old_pos = p.pos;
       p.velocity = state.v.row(i).transpose().cast<Real>();
-      p.inv_mass = static_cast<Real>(model.inv_mass[static_cast<size_t>(i)]);
+      p.inv_mass = static_cast<Real>(seen.inv_mass[static_cast<size_t>(i)]);
       p.radius = static_cast<Real>(model.radius[static_cast<size_t>(i)]);
     }
     for (int s = 0; s < options_.substeps; ++s) {
-      listing_step(model, h, state.time + (s + 1) * h, state.step, s, report);
+      listing_step(seen, h, state.time + (s + 1) * h, state.step, s, iterations, report);
     }
     for (int i = 0; i < particles_count_; ++i) {
       const Particle<Real>& p = particles_[static_cast<size_t>(i)];
@@ -126,9 +213,10 @@ class PbdSeedSolver final : public Solver {
   }
 
  private:
-  // One call of the listing's PBD_Solver::Step(float dt) with dt = h; t_end = time at its end.
+  // One call of the listing's PBD_Solver::Step(float dt) with dt = h; t_end = time at its end;
+  // `iterations` sweeps.
   void listing_step(const Model& model, double h, double t_end, long step, int substep,
-                    StepReport& report) {
+                    int iterations, StepReport& report) {
     const Real dt = static_cast<Real>(h);  // D10: float dt
     PhaseTimer timer;
     // 4.4: alpha_eff = alpha^(dt / reference_dt) and g_eff = g * reference_dt / dt, when asked.
@@ -151,9 +239,14 @@ class PbdSeedSolver final : public Solver {
               : to_real<Real>(motion_velocity(model.motions[static_cast<size_t>(a.motion)], t_end));
     }
 
-    // Step 1: back up the old positions.
-    for (auto& p : particles_) {
-      p.old_pos = p.pos;
+    // The positions at the start of the step, for the bottom_up order.
+    if (ordering_.order() == ProjectionOrder::BottomUp) start_ = positions();
+
+    // Step 1: back up the old positions (solver.seed.backup = "before_forces", the listing).
+    if (!backup_after_damping_) {
+      for (auto& p : particles_) {
+        p.old_pos = p.pos;
+      }
     }
 
     // Step 2: external forces.
@@ -183,7 +276,7 @@ class PbdSeedSolver final : public Solver {
 
     // The collision candidates of this step.
     build_candidates(model, t_end);
-    ordering_.set_contacts(model, candidates_);
+    ordering_.set_contacts(model, candidates_, start_);
     contact_lambda_.assign(candidates_.size(), 0.0);
     contact_active_.assign(candidates_.size(), 0);
     report.contacts += static_cast<int>(candidates_.size());
@@ -192,7 +285,7 @@ class PbdSeedSolver final : public Solver {
     // Step 3: constraint iterations, kind by kind as the listing loops. The order option applies
     // within each kind's loop.
     const int m = constraints_;
-    for (int iter = 0; iter < options_.iterations; ++iter) {
+    for (int iter = 0; iter < iterations; ++iter) {
       ordering_.sweep(step, substep, iter, sequence_);
       for (auto& list : by_kind_) list.clear();
       for (int j : sequence_) {
@@ -225,6 +318,15 @@ class PbdSeedSolver final : public Solver {
         if (p.inv_mass > 0) {
           p.pos = a * p.pos + b * p.old_pos;  // D2: damps every motion, rigid ones included
         }
+      }
+    }
+
+    // solver.seed.backup = "after_damping": the placement the article's 3.1a warns against, the
+    // backup after step 4 (step 4 itself blends with the previous step's backup, which is this
+    // step's start, as the listing's). Step 5 then divides pos - old_pos = 0: every velocity is 0.
+    if (backup_after_damping_) {
+      for (auto& p : particles_) {
+        p.old_pos = p.pos;
       }
     }
 
@@ -543,6 +645,12 @@ class PbdSeedSolver final : public Solver {
   int constraints_;
   Ordering ordering_;
   std::vector<std::vector<int>> bodies_;  // for Mueller's damping (D2 fixed)
+  bool backup_after_damping_;             // solver.seed.backup = "after_damping"
+  bool own_masses_;                       // dynamic or graded inverse masses (4.2)
+  Model masses_;                          // with own_masses_: the model with the article's
+                                          // inverse masses, the listing's only model
+  Points start_;                          // (n x 3) m, positions at the start of the step
+                                          // (bottom_up order only)
 
   std::vector<Particle<Real>> particles_;  // the listing's particles
   std::vector<Contact> candidates_;        // collision candidates of the step

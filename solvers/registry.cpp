@@ -2,6 +2,7 @@
 #include <stdexcept>
 
 #include "reference/reference_solvers.hpp"
+#include "solvers/force_symplectic.hpp"
 #include "solvers/global.hpp"
 #include "solvers/solver.hpp"
 #include "solvers/step_common.hpp"
@@ -18,6 +19,9 @@ const std::vector<SolverInfo>& solver_catalog() {
       {"xpbd",
        "Extended Position Based Dynamics, Macklin et al. 2016, with substeps "
        "(Macklin et al. 2019)"},
+      {"force-symplectic",
+       "force-based: explicit symplectic Euler, constraints as springs C^2/(2 alpha) with "
+       "damping, penalty contacts (solver.force.*)"},
     };
     for (const SolverInfo& r : reference_solver_catalog()) all.push_back(r);
     for (const SolverInfo& g : global_solver_catalog()) all.push_back(g);
@@ -32,6 +36,7 @@ std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& m
   if (options.name == "pbd") return make_pbd_solver(options, model);
   if (options.name == "xpbd") return make_xpbd_solver(options, model);
   if (options.name == "pbd-seed") return make_pbd_seed_solver(options, model);
+  if (options.name == "force-symplectic") return make_force_symplectic_solver(options, model);
   if (is_reference_solver(options.name)) return make_reference_solver(options, model);
   if (is_global_solver(options.name)) return make_global_solver(options, model);
   throw std::invalid_argument("solver.name = '" + options.name + "' is not a registered solver");

@@ -15,10 +15,10 @@ void predict_positions(const Model& model, const Points& x, const Points& v, dou
     if (model.inv_mass[static_cast<size_t>(i)] > 0.0) p.row(i) += h * v.row(i);
 }
 
-void find_substep_contacts(const Model& model, double t_end, double margin, Ordering& ordering,
-                           SubstepScratch& work, StepReport& report) {
+void find_substep_contacts(const Model& model, double t_end, double margin, const Points& x,
+                           Ordering& ordering, SubstepScratch& work, StepReport& report) {
   work.contacts = find_contacts(model, work.p, t_end, margin);
-  ordering.set_contacts(model, work.contacts);
+  ordering.set_contacts(model, work.contacts, x);
   work.contact_lambda.assign(work.contacts.size(), 0.0);
   work.contact_active.assign(work.contacts.size(), 0);
   report.contacts += static_cast<int>(work.contacts.size());

@@ -51,10 +51,10 @@ void apply_gravity(const Model& model, double h, Points& v);
 void predict_positions(const Model& model, const Points& x, const Points& v, double h, Points& p);
 
 // The contacts of the substep at the predicted positions work.p (find_contacts at t_end with
-// `margin`); the ordering is told of them, their multipliers and activity flags are cleared, and
-// report.contacts counts them.
-void find_substep_contacts(const Model& model, double t_end, double margin, Ordering& ordering,
-                           SubstepScratch& work, StepReport& report);
+// `margin`); the ordering is told of them (and of x, the positions at the start of the substep),
+// their multipliers and activity flags are cleared, and report.contacts counts them.
+void find_substep_contacts(const Model& model, double t_end, double margin, const Points& x,
+                           Ordering& ordering, SubstepScratch& work, StepReport& report);
 
 // Model constraint c: fills st.count and st.particles; returns the particles' inverse masses
 // (0 past st.count). Inline: it runs once per projection.

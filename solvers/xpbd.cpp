@@ -79,7 +79,7 @@ class XpbdSolver final : public Solver {
       std::fill(lambda.begin(), lambda.end(), 0.0);
       timer.lap(report.time_predict);
 
-      find_substep_contacts(model, t_end, options_.contact_margin, ordering_, work_, report);
+      find_substep_contacts(model, t_end, options_.contact_margin, x, ordering_, work_, report);
       timer.lap(report.time_contacts);
 
       run_sweeps(model, options_, ordering_, state.step, s, &lambda, work_, report,

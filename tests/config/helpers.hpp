@@ -32,10 +32,13 @@ inline std::filesystem::path catalog_dir() {
 // Set before any test runs, so that load("name") finds the catalog in every test.
 inline const bool kCatalogEnvironmentSet = !catalog_dir().empty();
 
+// The catalog's names: "<stem>" at its top level, "<folder>/<stem>" in a subfolder (failures/).
 inline std::vector<std::string> catalog_names() {
   std::vector<std::string> names;
-  for (const auto& f : std::filesystem::directory_iterator(catalog_dir()))
-    if (f.path().extension() == ".toml") names.push_back(f.path().stem().string());
+  const std::filesystem::path dir = catalog_dir();
+  for (const auto& f : std::filesystem::recursive_directory_iterator(dir))
+    if (f.path().extension() == ".toml")
+      names.push_back((f.path().lexically_relative(dir).parent_path() / f.path().stem()).generic_string());
   std::sort(names.begin(), names.end());
   return names;
 }

@@ -108,6 +108,7 @@ TEST(Describe, ListScenariosFindsTheCatalog) {
   EXPECT_EQ(kind_of("free_fall"), "particle");
   EXPECT_EQ(kind_of("balls_in_bowl"), "spheres");
   EXPECT_EQ(kind_of("mesh_box_tets"), "mesh");
+  EXPECT_EQ(kind_of("failures/inverted_tets"), "tet_block");  // a subfolder of the catalog
 }
 
 TEST(Describe, ResolveScenario) {
@@ -118,6 +119,7 @@ TEST(Describe, ResolveScenario) {
   EXPECT_EQ(resolve_scenario(path), std::filesystem::path(path));
   EXPECT_EQ(load(path).scenario_name, "spring");
   EXPECT_EQ(load("spring").scenario_name, "spring");
+  EXPECT_EQ(resolve_scenario("failures/zero_rest_length"), dir / "failures/zero_rest_length.toml");
 }
 
 TEST(Describe, UnknownScenarioListsTheCatalog) {

@@ -209,7 +209,7 @@ TEST(LoadErrors, NotInChoices) {
   const ConfigError e = load_error("[solver]\norder = \"reverse\"\n");
   expect_error(e, "bad.toml", 2, "solver.order",
                "solver.order = 'reverse' is not one of sequential, reversed, shuffled, colored, "
-               "jacobi (did you mean 'reversed'?)");
+               "jacobi, grouped_shuffled, bottom_up (did you mean 'reversed'?)");
 }
 
 TEST(LoadErrors, StringListNotInChoices) {

@@ -44,12 +44,22 @@ const std::map<std::string, int> kCatalogCounts = {
     {"cantilever_beam", 208},  // 13 x 4 x 4 vertices
     {"cantilever_fem", 99},    // 11 x 3 x 3 vertices
     {"cloth_on_character", 768},  // 24 x 32
+    {"failures/cloth_on_ground", 256},         // 16 x 16
+    {"failures/cyclic_penetration", 3},        // A, B and C
+    {"failures/heavy_inverse_mass", 11},       // 10 links
+    {"failures/inverted_tets", 45},            // 5 x 3 x 3 vertices
+    {"failures/negative_inverse_mass", 256},   // 16 x 16
+    {"failures/timestep_change", 13},          // 12 links
+    {"failures/unit_mismatch", 256},           // 16 x 16
+    {"failures/violated_initial_state", 256},  // 16 x 16
+    {"failures/zero_rest_length", 11},         // 10 links
     {"free_fall", 1},
     {"hanging_bar", 44},  // 2 x 11 x 2 vertices
     {"hanging_chain", 20},
     {"hanging_cloth", 4096},
     {"mesh_box_tets", 27},
     {"mesh_icosphere", 42},
+    {"particle_on_ground", 1},
     {"pendulum", 2},
     {"soft_cube_drop", 125},  // 5 x 5 x 5 vertices
     {"spring", 2},
@@ -66,13 +76,18 @@ TEST(Catalog, EveryScenarioLoadsBuildsAndPassesTheChecks) {
     SCOPED_TRACE(name);
     Config c;
     ASSERT_NO_THROW(c = load(name));
-    EXPECT_EQ(c.scenario_name, name);
+    // A scenario in a subfolder ("failures/zero_rest_length") is named by its file's stem.
+    const std::string stem = std::filesystem::path(name).filename().string();
+    EXPECT_EQ(c.scenario_name, stem);
     EXPECT_FALSE(c.get_string("description").empty());
     const Scene s = build_scene(c);
     EXPECT_EQ(s.model.particle_count(), kCatalogCounts.at(name));
-    EXPECT_TRUE(check_model(s.model).empty());
+    // The model checks, with the particles whose inverse mass a defect set (defects.*).
+    std::vector<int> free_inverse_mass;
+    for (std::int64_t p : c.get_ints("defects.inverse_mass_particles")) free_inverse_mass.push_back(static_cast<int>(p));
+    EXPECT_TRUE(check_model(s.model, free_inverse_mass).empty());
     EXPECT_TRUE(check_state(s.model, s.initial).empty());
-    EXPECT_EQ(s.model.name, name);
+    EXPECT_EQ(s.model.name, stem);
     EXPECT_EQ(solver_options(c).validate(), "");
     // Small enough to run in seconds with the defaults.
     EXPECT_LE(run_options(c).steps(), 1000);
@@ -466,6 +481,27 @@ TEST(Scenes, MeshMaterialRefusesANegativeTet) {
   // Reoriented (the default), the same mesh takes the material; without a material it loads as is.
   EXPECT_EQ(build_scene(load_text(text, file, sets({"scene.reorient=true"}))).model.elements.size(), 2u);
   EXPECT_TRUE(build_scene(load_text(text, file, sets({"scene.material=none"}))).model.elements.empty());
+}
+
+TEST(Scenes, RingOfSpheres) {
+  // Three balls on a horizontal ring (normal to gravity) around the origin, overlapping.
+  const std::string ring =
+      "gravity = [0, 0, -9.81]\n[scene]\nkind = \"spheres\"\nlayout = \"ring\"\ncount = [3, 1, 1]\n"
+      "radius = 0.05\nring_radius = 0.05\norigin = [1, 2, 3]\n";
+  const Scene s = build(ring);
+  ASSERT_EQ(s.model.particle_count(), 3);
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 r = Vec3(s.model.rest_positions.row(k)) - Vec3(1, 2, 3);
+    EXPECT_NEAR(r.norm(), 0.05, kTol);
+    EXPECT_NEAR(r.z(), 0.0, kTol);  // horizontal: normal to gravity
+  }
+  EXPECT_NEAR(s.model.rest_positions(0, 0), 1.05, kTol);  // the first on the side of +x
+  // The grid's jitter bound does not apply; count[1] and count[2] must be 1.
+  EXPECT_EQ(build(ring, {"scene.jitter=0.01"}).model.particle_count(), 3);
+  const ConfigError e = load_error(ring, "bad.toml", sets({"scene.count=[3, 2, 1]"}));
+  EXPECT_EQ(e.key(), "scene.count");
+  EXPECT_NE(std::string(e.what()).find("count[1] and count[2] must be 1"), std::string::npos) << e.what();
+  EXPECT_EQ(load_error(ring, "bad.toml", sets({"scene.ring_radius=0.0"})).key(), "scene.ring_radius");
 }
 
 TEST(Scenes, PackedSpheres) {

@@ -207,8 +207,9 @@ TEST(Schema, SolverBoundsAgreeWithValidate) {
   // Both bounds of iterations, substeps, jacobi_relaxation, pbd.velocity_damping, seed.damping,
   // seed.restitution, ref.rtol, ref.max_steps, ref.max_newton, global.max_iterations,
   // global.regularization, global.cg_tolerance and global.cg_max_iterations; the minimum of
-  // contact_margin, seed.reference_dt, ref.atol, ref.atol_velocity and global.tolerance.
-  EXPECT_EQ(bounds_checked, 31);
+  // contact_margin, seed.reference_dt, seed.fast_speed, ref.atol, ref.atol_velocity,
+  // global.tolerance, force.contact_stiffness and force.contact_damping.
+  EXPECT_EQ(bounds_checked, 34);
 }
 
 TEST(Schema, SetSolverOptionRefusesOtherPaths) {

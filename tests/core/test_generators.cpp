@@ -454,6 +454,60 @@ TEST(Generators, PackedSpheresAreDeterministicAndDoNotOverlap) {
   EXPECT_TRUE(test::near(Vec3(d.rest_positions.row(59)), spec.origin + spacing * Vec3(3, 2, 4), test::kRoundoff));
 }
 
+TEST(Generators, RingSpheresLieOnTheirCircle) {
+  // Three spheres on a circle of radius R normal to `up`: each R from the origin, in the plane,
+  // 120 degrees apart (centre distance sqrt(3) R), the first along the projection of +x.
+  PackedSpheresSpec spec;
+  spec.layout = SpheresLayout::Ring;
+  spec.count = {3, 1, 1};
+  spec.radius = 0.05;
+  spec.ring_radius = 1.6 * 0.05 / std::sqrt(3.0);
+  spec.origin = Vec3(0.2, 0.5, -0.1);
+  for (const Vec3& up : {Vec3(0, 1, 0), Vec3(0, 0, 1), Vec3(1, 0, 0), Vec3(1, 2, 3)}) {
+    spec.up = up;
+    Model m;
+    ASSERT_EQ(add_packed_spheres(m, spec).size(), 3);
+    const Vec3 u = up.normalized();
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 r = Vec3(m.rest_positions.row(k)) - spec.origin;
+      EXPECT_TRUE(test::near(r.norm(), spec.ring_radius, test::kRoundoff)) << k;
+      EXPECT_TRUE(test::near(r.dot(u), 0.0, test::kRoundoff)) << k;
+      const Vec3 next = Vec3(m.rest_positions.row((k + 1) % 3)) - spec.origin;
+      EXPECT_TRUE(test::near((r - next).norm(), 1.6 * spec.radius, test::kRoundoff)) << k;  // overlapping
+    }
+    if (u.x() < 0.9) {  // the first sphere towards +x
+      const Vec3 r0 = Vec3(m.rest_positions.row(0)) - spec.origin;
+      Vec3 e1 = Vec3::UnitX() - u.x() * u;
+      EXPECT_TRUE(test::near(r0, spec.ring_radius * e1.normalized(), test::kRoundoff));
+    }
+  }
+  // Jitter: at most `jitter` per axis off the circle's points, deterministic in the seed.
+  spec.up = Vec3::UnitY();
+  Model exact, a, b, c;
+  add_packed_spheres(exact, spec);
+  spec.jitter = 0.005;
+  spec.seed = 3;
+  add_packed_spheres(a, spec);
+  add_packed_spheres(b, spec);
+  spec.seed = 4;
+  add_packed_spheres(c, spec);
+  EXPECT_TRUE(a.rest_positions == b.rest_positions);  // determinism: == on purpose
+  EXPECT_FALSE(a.rest_positions == c.rest_positions);
+  EXPECT_LE((a.rest_positions - exact.rest_positions).cwiseAbs().maxCoeff(), 0.005);
+  EXPECT_GT((a.rest_positions - exact.rest_positions).cwiseAbs().maxCoeff(), 0.0);
+  // count[1], count[2] other than 1, a ring radius <= 0 or a zero axis are refused.
+  Model m;
+  spec.count = {3, 2, 1};
+  EXPECT_THROW(add_packed_spheres(m, spec), std::invalid_argument);
+  spec.count = {3, 1, 1};
+  spec.ring_radius = 0.0;
+  EXPECT_THROW(add_packed_spheres(m, spec), std::invalid_argument);
+  spec.ring_radius = 0.1;
+  spec.up = Vec3::Zero();
+  EXPECT_THROW(add_packed_spheres(m, spec), std::invalid_argument);
+  EXPECT_EQ(m.particle_count(), 0);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Spec validation.
 

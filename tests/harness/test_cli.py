@@ -317,6 +317,60 @@ class CliTest(unittest.TestCase):
         self.assertEqual(r.returncode, 1)  # a file that cannot be read
         self.assertIn("missing.h5", r.stderr)
 
+    def test_claims_runs_one_experiment_writes_the_report_and_checks_verdicts(self):
+        exp = os.path.join(self.dir, "experiments")
+        os.makedirs(exp)
+        self.write("experiments/S9.1.toml", """id = "S9.1"
+section = "9.1"
+claim = "a particle falls"
+experiment = "a particle falls for 0.2 s"
+scenario = "free_fall"
+[[run]]
+name = "xpbd"
+set = { "time.duration" = 0.2, "scene.velocity" = [0.0, 0.0, 0.0] }
+[[measure]]
+name = "drop"
+run = "xpbd"
+units = "J"
+value = "initial(potential_energy) - final(potential_energy)"
+doc = "energy released"
+[[part]]
+says = "it falls"
+rule = "drop > 0"
+[figure]
+kind = "series"
+series = "potential_energy"
+runs = ["xpbd"]
+""")
+        out = os.path.join(self.dir, "report")
+        record = os.path.join(self.dir, "verdicts.toml")
+        args = ["claims", "--experiments", exp, "--out", out, "--runs", os.path.join(self.dir, "runs")]
+        r = pbdbench(*args, "--record", record)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("S9.1    supported", r.stdout)
+        with open(os.path.join(out, "README.md")) as f:
+            report = f.read()
+        self.assertIn("| [S9.1](#s91) | a particle falls |", report)
+        self.assertTrue(os.path.exists(os.path.join(out, "figures", "S9.1.png")))
+        with open(os.path.join(out, "claims.json")) as f:
+            self.assertEqual(json.load(f)["claims"][0]["verdict"], "supported")
+        # The same verdicts: exit 0; a changed record: exit 5 naming the part.
+        self.assertEqual(pbdbench(*args, "--no-plots", "--expect", record).returncode, 0)
+        with open(record) as f:
+            text = f.read().replace('"S9.1.1" = "supported"', '"S9.1.1" = "contradicted"')
+        self.write("changed.toml", text)
+        r = pbdbench(*args, "--no-plots", "--expect", os.path.join(self.dir, "changed.toml"))
+        self.assertEqual(r.returncode, 5, r.stdout + r.stderr)
+        self.assertIn("S9.1.1: recorded contradicted, now supported", r.stderr)
+        # An unknown id and a bad file are bad input (exit 2), naming the file and line.
+        r = pbdbench(*args, "S9.9")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("no claim 'S9.9'", r.stderr)
+        self.write("experiments/S9.2.toml", 'id = "S9.2"\nsection = "9.2"\nclaim = "x"\nexperiment = "y"\nbogus = 1\n')
+        r = pbdbench(*args)
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("S9.2.toml:5: bogus: unknown key", r.stderr)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -191,3 +191,127 @@ TEST(Runner, ShadowGapShrinksAsIterationsGrowAndLeavesTheRunAlone) {
 TEST(Runner, ShadowMustBeAGlobalSolver) {
   EXPECT_THROW(config::load("hanging_chain", {{"shadow.solver", "xpbd"}}), config::ConfigError);
 }
+
+// ---------------------------------------------------------------------------------------------
+// The failure detectors in the run file, and relax.frames (harness/relax.hpp).
+
+TEST(Runner, DetectorSeriesAppearInTheRunFile) {
+  // The free fall from y = 100 under a plane y = 150 (normal +y, offset -150) that the particle
+  // starts 50 m below: sunk 50 m at t = 0. The contact then throws it onto the plane.
+  const std::string text = std::string(kFreeFall) + R"(
+[[collider]]
+type = "plane"
+normal = [0.0, 1.0, 0.0]
+offset = -150.0
+)";
+  const config::Config cfg = config::load_text(text, "free_fall_test.toml", {{"time.duration", "0.1"}});
+  const fs::path out = temp_file("detectors.h5");
+  ASSERT_EQ(run_config(cfg, out).status, RunStatus::Complete);
+  const RunFileData d = read_run_file(out);
+  const auto& height = d.series.at("height_min");
+  const auto& count = d.series.at("sunk_count");
+  const auto& depth = d.series.at("sunk_depth");
+  const auto& jitter = d.series.at("velocity_hf_rms");
+  ASSERT_EQ(height.size(), 11u);
+  ASSERT_EQ(jitter.size(), 11u);
+  EXPECT_EQ(height[0], 100.0);
+  EXPECT_EQ(count[0], 1.0);
+  EXPECT_EQ(depth[0], 50.0);
+  // After the first step the particle is on the plane (its centre at 150 + radius).
+  EXPECT_EQ(count[1], 0.0);
+  EXPECT_EQ(depth[1], 0.0);
+  EXPECT_GT(height[1], 150.0);
+  // Rows 0 and 1 have no two earlier velocities; then the jitter is finite.
+  EXPECT_TRUE(std::isnan(jitter[0]));
+  EXPECT_TRUE(std::isnan(jitter[1]));
+  for (size_t k = 2; k < jitter.size(); ++k) EXPECT_TRUE(std::isfinite(jitter[k])) << k;
+}
+
+TEST(Runner, JitterOfAFreeFallIsZeroUpToRoundOff) {
+  // v_n = -g n dt: a constant acceleration, whose second difference is 0 up to the round-off of
+  // the velocities (about 1e-16 of 10 m/s).
+  const config::Config cfg = config::load_text(kFreeFall, "free_fall_test.toml");
+  const fs::path out = temp_file("jitter_free_fall.h5");
+  ASSERT_EQ(run_config(cfg, out).status, RunStatus::Complete);
+  const RunFileData d = read_run_file(out);
+  const auto& jitter = d.series.at("velocity_hf_rms");
+  for (size_t k = 2; k < jitter.size(); ++k) EXPECT_LT(jitter[k], 1e-13) << k;
+}
+
+TEST(Runner, NegativeInverseMassRunsWithThePbdSolvers) {
+  for (const char* solver : {"pbd", "xpbd", "pbd-seed"}) {
+    SCOPED_TRACE(solver);
+    const config::Config cfg = config::load("failures/negative_inverse_mass",
+                                            {{"solver.name", solver}, {"time.duration", "0.25"}});
+    const fs::path out = temp_file(std::string("negative_mass_") + solver + ".h5");
+    const RunOutcome r = run_config(cfg, out);
+    EXPECT_NE(r.status, RunStatus::Failed) << r.reason;
+    EXPECT_GE(read_run_file(out).series.at("time").size(), 2u);
+  }
+}
+
+// A spring of rest length 1 started at length 1.5, without gravity: one PBD projection with
+// k = 1 (or an XPBD one with compliance 0) puts the single link exactly at the rest value it is
+// given. Relaxed over 4 steps the solver's rest value is 1.5 - 0.5 (k + 1) / 4 at step k, so the
+// error measured against the true rest length falls 0.375, 0.25, 0.125, 0; unrelaxed it is 0
+// after the first step.
+TEST(Runner, RelaxationBlendsTheRestValuesOverTheFirstSteps) {
+  const char* spring = R"(
+gravity = [0, 0, 0]
+[scene]
+kind = "spring"
+rest_length = 1.0
+initial_length = 1.5
+compliance = 0.0
+[time]
+dt = 0.01
+duration = 0.08
+[solver]
+iterations = 1
+)";
+  for (const char* solver : {"pbd", "xpbd"}) {
+    SCOPED_TRACE(solver);
+    const fs::path relaxed = temp_file(std::string("relaxed_") + solver + ".h5");
+    const fs::path plain = temp_file(std::string("unrelaxed_") + solver + ".h5");
+    ASSERT_EQ(run_config(config::load_text(spring, "spring.toml", {{"solver.name", solver}, {"relax.frames", "4"}}), relaxed).status,
+              RunStatus::Complete);
+    ASSERT_EQ(run_config(config::load_text(spring, "spring.toml", {{"solver.name", solver}}), plain).status,
+              RunStatus::Complete);
+    const RunFileData d = read_run_file(relaxed), d0 = read_run_file(plain);
+    const auto& e = d.series.at("constraint_error_max");
+    const auto& e0 = d0.series.at("constraint_error_max");
+    ASSERT_EQ(e.size(), 9u);
+    const double expected[] = {0.5, 0.375, 0.25, 0.125, 0.0};
+    for (size_t k = 0; k < 5; ++k) EXPECT_NEAR(e[k], expected[k], 1e-12) << k;
+    EXPECT_NEAR(e0[0], 0.5, 1e-12);
+    EXPECT_NEAR(e0[1], 0.0, 1e-12);
+  }
+  // pbd-seed reads its rest values from the model it is given too: it runs relaxed.
+  const fs::path seed = temp_file("relaxed_seed.h5");
+  EXPECT_NE(run_config(config::load_text(spring, "spring.toml", {{"solver.name", "pbd-seed"}, {"relax.frames", "4"}}), seed).status,
+            RunStatus::Failed);
+}
+
+TEST(Runner, RelaxationIsRefusedForSolversThatCacheTheModel) {
+  const fs::path out = temp_file("relax_refused.h5");
+  for (const char* solver : {"global-cholmod", "ref-bdf"}) {
+    fs::remove(out);
+    const config::Config cfg = config::load("hanging_chain", {{"solver.name", solver}, {"relax.frames", "8"}});
+    try {
+      run_config(cfg, out);
+      ADD_FAILURE() << solver << ": expected a ConfigError";
+    } catch (const config::ConfigError& e) {
+      EXPECT_EQ(e.key(), "relax.frames") << solver;
+      EXPECT_NE(std::string(e.what()).find("pbd, xpbd, pbd-seed"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(out)) << solver;
+  }
+  const config::Config shadowed =
+      config::load("hanging_chain", {{"relax.frames", "8"}, {"shadow.solver", "global-cholmod"}});
+  try {
+    run_config(shadowed, out);
+    ADD_FAILURE() << "expected a ConfigError";
+  } catch (const config::ConfigError& e) {
+    EXPECT_EQ(e.key(), "relax.frames");
+  }
+}

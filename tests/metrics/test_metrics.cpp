@@ -309,6 +309,137 @@ TEST(metrics, NoPenetrationWithoutContacts) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Failure detectors: height_min, sunk_particles, velocity_hf_rms.
+
+TEST(metrics, HeightMinIsTheLowestDynamicParticleAlongUp) {
+  // Particle 2 is lowest but pinned; particle 3 has a negative inverse mass (a scene defect): it
+  // is dynamic (inv_mass != 0) and counts.
+  Model m = particles({{0, 0.5, 9}, {1, -0.25, -9}, {2, -7, 0}, {3, 0.1, -1}}, {1, 2, 0, -1});
+  State s = rest_state(m);
+  EXPECT_EQ(height_min(m, s), -0.25);
+  EXPECT_EQ(measure(m, s, measure_baseline(m, s)).height_min, -0.25);
+  // Gravity along -z: up is +z, and particle 1 (z = -9) is the lowest.
+  m.gravity = Vec3(0, 0, -2);
+  EXPECT_EQ(height_min(m, s), -9.0);
+  // Without gravity up is +y.
+  m.gravity = Vec3::Zero();
+  EXPECT_EQ(height_min(m, s), -0.25);
+  // No dynamic particle, or a non-finite one: NaN.
+  Model pinned = particles({{0, 1, 0}}, {0});
+  EXPECT_TRUE(std::isnan(height_min(pinned, rest_state(pinned))));
+  s.x(3, 1) = kNaN;
+  EXPECT_TRUE(std::isnan(height_min(m, s)));
+}
+
+TEST(metrics, SunkDepthBelowAPlaneIsTheCentresDepth) {
+  // Particle 0 sits d = 0.3 below the plane y = 0, particle 1 overlaps it by its radius only
+  // (a penetration, not sunk), particle 2 is pinned below it (not counted).
+  const double d = 0.3;
+  Model m = particles({{0, -d, 0}, {1, 0.05, 0}, {2, -5, 0}}, {1, 1, 0});
+  m.radius = {0.1, 0.1, 0.1};
+  PlaneCollider floor;
+  floor.normal = Vec3(0, 2, 0);  // not unit: the detector uses n / |n| and offset / |n|
+  m.planes = {floor};
+  State s = rest_state(m);
+  SunkParticles sunk = sunk_particles(m, s);
+  EXPECT_EQ(sunk.count, 1);
+  EXPECT_TRUE(Near(sunk.depth, d, 1e-15));
+  const Sample out = measure(m, s, measure_baseline(m, s));
+  EXPECT_EQ(out.sunk_count, 1);
+  EXPECT_TRUE(Near(out.sunk_depth, d, 1e-15));
+  EXPECT_EQ(out.penetration_count, 2);  // the radius overlaps: particles 0 and 1
+  // The plane 2 y + 1 = 0 is y = -0.5: nothing below it.
+  m.planes[0].offset = 1.0;
+  EXPECT_EQ(sunk_particles(m, s).count, 0);
+  EXPECT_EQ(sunk_particles(m, s).depth, 0.0);
+  // The plane 2 y - 1 = 0 is y = 0.5: particles 0 and 1 are below it, particle 0 by 0.8.
+  m.planes[0].offset = -1.0;
+  EXPECT_EQ(sunk_particles(m, s).count, 2);
+  EXPECT_TRUE(Near(sunk_particles(m, s).depth, 0.5 + d, 1e-15));
+  // A non-finite position: not counted, depth NaN.
+  s.x(1, 0) = kNaN;
+  EXPECT_EQ(sunk_particles(m, s).count, 1);
+  EXPECT_TRUE(std::isnan(sunk_particles(m, s).depth));
+}
+
+TEST(metrics, SunkIntoSpheresOutsideInsideAndBowl) {
+  // Spheres of radius 1 about the origin. Particles at distance 0.75 below the centre, 1.5
+  // below it, and 1.25 above it.
+  Model m = particles({{0, -0.75, 0}, {0, -1.5, 0}, {0, 1.25, 0}}, {1, 1, 1});
+  SphereCollider ball;
+  ball.radius = 1.0;
+  m.spheres = {ball};
+  const State s = rest_state(m);
+  m.spheres[0].side = SphereSide::Outside;  // particle 0 is inside it, 0.25 deep
+  EXPECT_EQ(sunk_particles(m, s).count, 1);
+  EXPECT_EQ(sunk_particles(m, s).depth, 0.25);
+  m.spheres[0].side = SphereSide::Inside;  // particles 1 and 2 are out, 0.5 and 0.25
+  EXPECT_EQ(sunk_particles(m, s).count, 2);
+  EXPECT_EQ(sunk_particles(m, s).depth, 0.5);
+  m.spheres[0].side = SphereSide::Bowl;  // only below the centre: particle 1
+  EXPECT_EQ(sunk_particles(m, s).count, 1);
+  EXPECT_EQ(sunk_particles(m, s).depth, 0.5);
+  // Two colliders: a particle sunk into both counts once, with its larger depth.
+  m.spheres[0].side = SphereSide::Outside;
+  PlaneCollider floor;
+  floor.offset = 0.5;  // y = -0.5
+  m.planes = {floor};
+  const SunkParticles both = sunk_particles(m, s);
+  EXPECT_EQ(both.count, 2);  // particle 0 (0.25 in the sphere, 0.25 below the plane), particle 1
+  EXPECT_EQ(both.depth, 1.0);  // particle 1, 1 below the plane
+}
+
+TEST(metrics, VelocityHighFrequencyOfAnAlternatingVelocityIsItsAmplitude) {
+  // v alternates +a, -a, +a: the second difference is 4a, and the detector reads |a|.
+  const Model m = particles({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}, {1, 1, 0});
+  const Vec3 a(0.5, -1.0, 2.0);  // |a| = sqrt(5.25)
+  Points plus(3, 3), minus(3, 3);
+  plus << a.transpose(), a.transpose(), 100, 0, 0;   // the pinned particle is left out
+  minus << -a.transpose(), -a.transpose(), -100, 0, 0;
+  EXPECT_TRUE(Near(velocity_hf_rms(m, plus, minus, plus), std::sqrt(5.25)));
+  EXPECT_TRUE(Near(velocity_hf_rms(m, minus, plus, minus), std::sqrt(5.25)));
+  // Only particle 0 jitters: the RMS over the two dynamic particles is |a| / sqrt(2).
+  Points still = plus;
+  still.row(1) = a.transpose();
+  Points still_minus = minus;
+  still_minus.row(1) = a.transpose();
+  EXPECT_TRUE(Near(velocity_hf_rms(m, plus, still_minus, still), std::sqrt(5.25 / 2.0)));
+}
+
+TEST(metrics, VelocityHighFrequencyOfAConstantAccelerationIsZero) {
+  // v_n = v_0 + n g h with values exact in binary: the second difference is exactly 0.
+  const Model m = particles({{0, 0, 0}, {1, 0, 0}}, {1, 0.5});
+  Points v0(2, 3), v1(2, 3), v2(2, 3);
+  v0 << 1.0, -0.5, 0.0, 3.0, 0.0, 0.0;
+  v1 << 1.0, -0.75, 0.0, 3.0, 0.0, 0.25;
+  v2 << 1.0, -1.0, 0.0, 3.0, 0.0, 0.5;
+  EXPECT_EQ(velocity_hf_rms(m, v2, v1, v0), 0.0);
+  // A velocity kink (the particle hits something) is not 0: 0.25 / 4 over sqrt(2) particles.
+  v2(0, 1) = -0.75;
+  EXPECT_TRUE(Near(velocity_hf_rms(m, v2, v1, v0), 0.25 / 4.0 / std::sqrt(2.0)));
+  // measure() cannot know earlier velocities: NaN until the runner fills it in.
+  const State s = rest_state(m);
+  EXPECT_TRUE(std::isnan(measure(m, s, measure_baseline(m, s)).velocity_hf_rms));
+  // Without dynamic particles: NaN.
+  const Model pinned = particles({{0, 0, 0}}, {0});
+  const Points z = Points::Zero(1, 3);
+  EXPECT_TRUE(std::isnan(velocity_hf_rms(pinned, z, z, z)));
+}
+
+TEST(metrics, NegativeInverseMassGivesNegativeMassNotACrash) {
+  // A particle with inverse mass -1 (a scene defect) has mass -1 kg: its kinetic energy is
+  // -1/2 v^2 and its momentum -v. The metrics take it as given.
+  const Model m = particles({{0, 1, 0}, {1, 1, 0}}, {-1.0, 1.0});
+  const State s = state_of(m, {{2, 0, 0}, {0, 0, 1}});
+  const Sample out = measure(m, s, measure_baseline(m, s));
+  EXPECT_TRUE(Near(out.kinetic_energy, -2.0 + 0.5));
+  EXPECT_TRUE(Near(out.linear_momentum.x(), -2.0));
+  EXPECT_TRUE(Near(out.linear_momentum.z(), 1.0));
+  EXPECT_TRUE(out.finite);
+  EXPECT_EQ(out.height_min, 1.0);
+}
+
+// ---------------------------------------------------------------------------------------------
 // Explosion indicators.
 
 TEST(metrics, SpeedAndExtent) {

@@ -53,7 +53,8 @@ TEST(runfile_series, RequiredSeriesInOrder) {
       "time", "step", "constraint_error_max", "constraint_error_rms", "tet_volume",
       "volume_drift", "surface_volume", "surface_volume_drift", "kinetic_energy",
       "potential_energy", "elastic_energy", "total_energy", "linear_momentum",
-      "angular_momentum", "penetration_max", "penetration_count", "max_speed", "extent",
+      "angular_momentum", "penetration_max", "penetration_count", "height_min", "sunk_count",
+      "sunk_depth", "velocity_hf_rms", "max_speed", "extent",
       "tip_displacement", "support_force", "pendulum_angle", "substeps", "iterations", "contacts", "active_contacts", "skipped", "residual_g",
       "residual_h", "time_predict", "time_contacts", "time_project", "time_velocity",
       "wall_step"};
@@ -90,7 +91,8 @@ TEST(runfile_series, ShapesUnitsDocsAndDeterminism) {
       {"elastic_energy", "J"}, {"total_energy", "J"}, {"linear_momentum", "kg m/s"},
       {"angular_momentum", "kg m^2/s"}, {"penetration_max", "m"}, {"penetration_count", "1"},
       {"max_speed", "m/s"}, {"extent", "m"}, {"wall_step", "s"}, {"time_project", "s"},
-      {"tip_displacement", "m"}, {"support_force", "N"}, {"pendulum_angle", "rad"}};
+      {"tip_displacement", "m"}, {"support_force", "N"}, {"pendulum_angle", "rad"},
+      {"height_min", "m"}, {"sunk_count", "1"}, {"sunk_depth", "m"}, {"velocity_hf_rms", "m/s"}};
   for (const auto& [name, unit] : units) {
     const SeriesSpec* s = find(name);
     ASSERT_NE(s, nullptr) << name;
@@ -120,6 +122,10 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   s.tip_displacement = Vec3(43.5, 44.5, 45.5);
   s.support_force = Vec3(46.5, 47.5, 48.5);
   s.pendulum_angle = 49.5;
+  s.height_min = 64.5;
+  s.sunk_count = 65;
+  s.sunk_depth = 66.5;
+  s.velocity_hf_rms = 67.5;
   StepReport r;
   r.substeps = 21;
   r.iterations = 22;
@@ -177,7 +183,9 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"shadow_gap", {54.5}}, {"shadow_gap_rms", {55.5}}, {"shadow_gap_max", {56.5}},
       {"shadow_constraint_error_max", {57.5}}, {"shadow_residual_g", {58.5}},
       {"shadow_residual_h", {59.5}}, {"shadow_residual_position", {60.5}},
-      {"shadow_iterations", {61}}, {"shadow_time", {62.5}}, {"shadow_cost_ratio", {63.5}}};
+      {"shadow_iterations", {61}}, {"shadow_time", {62.5}}, {"shadow_cost_ratio", {63.5}},
+      {"height_min", {64.5}}, {"sunk_count", {65}}, {"sunk_depth", {66.5}},
+      {"velocity_hf_rms", {67.5}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";

@@ -236,8 +236,10 @@ inline double max_abs_diff(const Points& a, const Points& b) {
 
 inline const std::vector<ProjectionOrder>& all_orders() {
   static const std::vector<ProjectionOrder> orders = {
-      ProjectionOrder::Sequential, ProjectionOrder::Reversed, ProjectionOrder::Shuffled,
-      ProjectionOrder::Colored, ProjectionOrder::Jacobi};
+      ProjectionOrder::Sequential, ProjectionOrder::Reversed,
+      ProjectionOrder::Shuffled,   ProjectionOrder::Colored,
+      ProjectionOrder::Jacobi,     ProjectionOrder::GroupedShuffled,
+      ProjectionOrder::BottomUp};
   return orders;
 }
 

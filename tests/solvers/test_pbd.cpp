@@ -236,9 +236,11 @@ TEST(Pbd, AngularMomentumIsConservedOnlyToSecondOrder) {
 
 TEST(Pbd, StepIsRotationEquivariant) {
   // The symmetry behind angular momentum: rotating the initial state rotates the result, for
-  // every order, to round-off.
+  // every order, to round-off. (bottom_up sorts by height along -gravity, +y without gravity:
+  // it commutes only with rotations that turn gravity too; test_ordering checks that.)
   const Mat3 R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
   for (ProjectionOrder order : all_orders()) {
+    if (order == ProjectionOrder::BottomUp) continue;
     Random rng(5);
     const Model m = random_internal_model(rng);
     Model mr = m;

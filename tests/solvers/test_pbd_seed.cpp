@@ -6,6 +6,7 @@
 
 #include "core/constraint_functions.hpp"
 #include "solver_test_util.hpp"
+#include "solvers/pbd_seed.hpp"
 
 namespace pbdbench::test {
 namespace {
@@ -462,6 +463,268 @@ TEST(PbdSeed, AllFixedIsPbd) {
   expect_all_fixed_is_pbd(true, 0.0);
   expect_all_fixed_is_pbd(false, 0.0);
   expect_all_fixed_is_pbd(true, 0.02);  // D2 fixed with alpha 0.98: Mueller's k_damping 0.02
+}
+
+// ---------------------------------------------------------------------------------------------
+// The article's tuning options from sections 4 and 5 (solvers/pbd_seed.hpp).
+
+// A scene that exercises every part of the listing: a 4 x 4 patch pinned at two corners, with
+// stretch, shear and bending, a tet with volume, a plane, a sphere and particle contacts.
+Model tuning_scene() {
+  Model m = empty_model(Vec3(0, -9.81, 0));
+  for (int j = 0; j < 4; ++j)
+    for (int i = 0; i < 4; ++i)
+      add_particle(m, Vec3(0.1 * i, 0.3 + 0.01 * i * j, 0.1 * j),
+                   (j == 0 && (i == 0 || i == 3)) ? 0.0 : 0.05 + 0.01 * i, 0.02);
+  for (int j = 0; j < 4; ++j)
+    for (int i = 0; i < 4; ++i) {
+      const int k = 4 * j + i;
+      if (i + 1 < 4) add_rest_distance(m, k, k + 1, 0.9);
+      if (j + 1 < 4) add_rest_distance(m, k, k + 4, 0.9);
+      if (i + 1 < 4 && j + 1 < 4) add_rest_distance(m, k, k + 5, 0.5);
+    }
+  add_bending(m, 5, 6, 1, 10, 0.1, 0.3);
+  const int t = add_particle(m, Vec3(0.5, 0.1, 0.5), 0.2);
+  add_particle(m, Vec3(0.6, 0.1, 0.5), 0.2);
+  add_particle(m, Vec3(0.5, 0.2, 0.5), 0.2);
+  add_particle(m, Vec3(0.5, 0.1, 0.6), 0.2);
+  add_volume(m, t, t + 1, t + 2, t + 3, 0.9 * 0.1 * 0.1 * 0.1 / 6.0);
+  m.planes.push_back({Vec3::UnitY(), 0.0, 0.3, 0.2});
+  m.spheres.push_back({Vec3(0.15, 0.2, 0.15), 0.1, SphereSide::Outside, 0.2, 0.3, -1});
+  m.particle_contact = true;
+  return m;
+}
+
+// FNV-1a over the bits of x and v, continuing from h.
+std::uint64_t state_hash(const State& s, std::uint64_t h = 1469598103934665603ull) {
+  auto eat = [&](const double* p, Eigen::Index n) {
+    const auto* b = reinterpret_cast<const unsigned char*>(p);
+    for (size_t i = 0; i < sizeof(double) * static_cast<size_t>(n); ++i) {
+      h ^= b[i];
+      h *= 1099511628211ull;
+    }
+  };
+  eat(s.x.data(), s.x.size());
+  eat(s.v.data(), s.v.size());
+  return h;
+}
+
+// 40 steps of pbd-seed (5 iterations, 2 substeps, contact margin 0.01 m) from a moving start;
+// the hash of the states after every step (the listing goes non-finite on the way).
+std::uint64_t tuning_run(const SolverOptions& o) {
+  const Model m = tuning_scene();
+  auto sv = make_solver(o, m);
+  State s = rest_state(m);
+  for (int i = 0; i < m.particle_count(); ++i)
+    if (m.inv_mass[static_cast<size_t>(i)] > 0.0) s.v.row(i) = Vec3(0.3, -0.5 - 0.1 * i, 0.2).transpose();
+  std::uint64_t h = 1469598103934665603ull;
+  for (int k = 0; k < 40; ++k) {
+    sv->step(m, s, 1.0 / 60.0);
+    h = state_hash(s, h);
+  }
+  return h;
+}
+
+TEST(PbdSeed, TuningDefaultsAreTheListingBitForBit) {
+  // The hashes were recorded with the solver as it was before the tuning options and the
+  // grouped_shuffled / bottom_up orders existed (the same scene and options, this build's
+  // flags); with their defaults the listing must not change a bit. The listing as published
+  // (no fixes), with D1, D3 and D8 fixed, and with all but D4 and D10 fixed (still float), in
+  // the five orders of that time.
+  const std::vector<ProjectionOrder> orders = {ProjectionOrder::Sequential, ProjectionOrder::Reversed,
+                                               ProjectionOrder::Shuffled, ProjectionOrder::Colored,
+                                               ProjectionOrder::Jacobi};
+  const std::vector<std::vector<std::string>> fixes = {
+      {}, {"D1", "D3", "D8"}, {"D1", "D2", "D3", "D5", "D6", "D7", "D8", "D9", "D11"}};
+  const std::uint64_t expected[3][5] = {
+      {0x1930ac02b3e07cefull, 0x4ce80258b8a73900ull, 0xb4d54549ee8f07d3ull, 0xd4fd03fe573a5180ull,
+       0xf6c476ce36144c2eull},
+      {0x1704d08c17ab905aull, 0x56854a85889dbd0aull, 0x81ba8e5a6d97bbcfull, 0xcfaac08af02d5021ull,
+       0x9fe12ef2541d4fa5ull},
+      {0x061dd57148b93394ull, 0x1d5ecc1b575274fdull, 0x1749cdf09dba7fb4ull, 0x26070f2b4ef90edcull,
+       0x05bcf375af7c752dull}};
+  for (size_t f = 0; f < fixes.size(); ++f)
+    for (size_t k = 0; k < orders.size(); ++k) {
+      SolverOptions o = seed(fixes[f], 5, 2);
+      o.order = orders[k];
+      o.contact_margin = 0.01;
+      EXPECT_EQ(tuning_run(o), expected[f][k]) << "fixes " << f << " " << to_string(orders[k]);
+    }
+}
+
+TEST(PbdSeed, IterationSchedules) {
+  SolverOptions o = seed({}, 7);
+  EXPECT_EQ(seed_iterations(o, 0, 0.0), 7);
+  EXPECT_EQ(seed_iterations(o, 5, 100.0), 7);
+  o.seed_iteration_schedule = "dynamic";
+  o.seed_fast_speed = 2.0;
+  EXPECT_EQ(seed_iterations(o, 0, 0.0), 10);   // the first step: 10, fast or not
+  EXPECT_EQ(seed_iterations(o, 0, 50.0), 10);
+  EXPECT_EQ(seed_iterations(o, 1, 2.0), 3);    // not faster than fast_speed: 3
+  EXPECT_EQ(seed_iterations(o, 1, 2.001), 5);  // faster: 5
+  o.seed_iteration_schedule = "mixed";
+  EXPECT_EQ(seed_iterations(o, 0, 2.0), 3);
+  EXPECT_EQ(seed_iterations(o, 9, 2.001), 1);
+}
+
+TEST(PbdSeed, IterationScheduleIsWhatTheStepReports) {
+  // A free particle (no constraints, no gravity acting: D1) at 0.5 m/s, then 1.5 m/s; fast_speed
+  // 1 m/s; 2 substeps: the report counts sweeps summed over substeps.
+  Model m = empty_model(Vec3(0, -9.81, 0));
+  add_particle(m, Vec3::Zero(), 1.0);
+  for (const std::string schedule : {"fixed", "dynamic", "mixed"}) {
+    SolverOptions o = seed({}, 7, 2);
+    o.seed_iteration_schedule = schedule;
+    o.seed_damping = 1.0;
+    auto sv = make_solver(o, m);
+    State s = rest_state(m);
+    s.v(0, 0) = 0.5;
+    const int first = sv->step(m, s, 0.01).iterations;
+    const int slow = sv->step(m, s, 0.01).iterations;
+    s.v(0, 0) = 1.5;
+    const int fast = sv->step(m, s, 0.01).iterations;
+    SCOPED_TRACE(schedule);
+    if (schedule == "fixed") {
+      EXPECT_EQ(first, 14);
+      EXPECT_EQ(slow, 14);
+      EXPECT_EQ(fast, 14);
+    } else if (schedule == "dynamic") {
+      EXPECT_EQ(first, 20);
+      EXPECT_EQ(slow, 6);
+      EXPECT_EQ(fast, 10);
+    } else {
+      EXPECT_EQ(first, 6);
+      EXPECT_EQ(slow, 6);
+      EXPECT_EQ(fast, 2);
+    }
+  }
+}
+
+TEST(PbdSeed, BackupAfterDampingZeroesEveryVelocity) {
+  // 3.1a's warned-against placement: old_pos backed up after step 4, so step 5 computes
+  // (pos - pos) / dt = 0. With gravity acting (D1 fixed), in double, without the blend
+  // (alpha = 1): each step starts at rest and moves by g dt^2, a fall at the constant speed
+  // g dt instead of x0 + g dt^2 n (n + 1) / 2.
+  const double dt = 0.01;
+  const Vec3 g(0, -9.81, 0);
+  Model m = empty_model(g);
+  add_particle(m, Vec3(0, 1, 0), 1.0);
+  for (const std::string backup : {"before_forces", "after_damping"}) {
+    SolverOptions o = seed({"D1", "D10"});
+    o.seed_backup = backup;
+    o.seed_damping = 1.0;
+    auto sv = make_solver(o, m);
+    State s = rest_state(m);
+    const int n = 20;
+    for (int k = 0; k < n; ++k) sv->step(m, s, dt);
+    SCOPED_TRACE(backup);
+    if (backup == "after_damping") {
+      EXPECT_EQ(s.v.norm(), 0.0);
+      EXPECT_NEAR(s.x(0, 1), 1.0 + n * g.y() * dt * dt, 1e-12);
+    } else {
+      EXPECT_NEAR(s.v(0, 1), n * g.y() * dt, 1e-12);
+      EXPECT_NEAR(s.x(0, 1), 1.0 + g.y() * dt * dt * n * (n + 1) / 2.0, 1e-12);
+    }
+  }
+  // With the blend (alpha = 0.98): step 4 blends with this step's start, as the listing does,
+  // so the move per step is 0.98 g dt^2.
+  SolverOptions o = seed({"D1", "D10"});
+  o.seed_backup = "after_damping";
+  auto sv = make_solver(o, m);
+  State s = rest_state(m);
+  for (int k = 0; k < 3; ++k) sv->step(m, s, dt);
+  EXPECT_NEAR(s.x(0, 1), 1.0 + 3 * 0.98 * g.y() * dt * dt, 1e-12);
+  EXPECT_EQ(s.v.norm(), 0.0);
+}
+
+TEST(PbdSeed, DynamicInverseMass) {
+  // 4.2: 0.1 for a particle faster than fast_speed, else 0.3; pinned stay 0.
+  Model m = chain_model(3, 0.1, 2.0, Vec3(0, -9.81, 0));
+  Points v = Points::Zero(4, 3);
+  v(1, 0) = 0.5;
+  v(2, 1) = -1.5;
+  v(3, 2) = 1.0;  // not faster than 1.0
+  v(0, 0) = 5.0;  // pinned: stays 0 whatever its speed
+  EXPECT_EQ(seed_dynamic_inverse_masses(m, v, 1.0), (std::vector<double>{0.0, 0.3, 0.1, 0.3}));
+  // In a step: two particles on a link of rest length 1 stretched to 1.2 (D3 fixed, k = 1, one
+  // iteration, D1 as listed so nothing else moves them, alpha = 1, double). The fast one
+  // (w = 0.1) moves a quarter of the error, the slow one (w = 0.3) three quarters; without the
+  // option (both w = 1/2 kg) each moves half.
+  Model pair = empty_model();
+  add_particle(pair, Vec3(0, 0, 0), 2.0);
+  add_particle(pair, Vec3(1.2, 0, 0), 2.0);
+  add_distance(pair, 0, 1, 1.0);
+  for (bool dynamic : {false, true}) {
+    SolverOptions o = seed({"D3", "D10"}, 1);
+    o.seed_damping = 1.0;
+    o.seed_dynamic_inverse_mass = dynamic;
+    State s = rest_state(pair);
+    s.v(0, 1) = 3.0;  // fast, along y (its step-2 move, with D1 listed, is v dt)
+    make_solver(o, pair)->step(pair, s, 1e-4);
+    const double moved0 = s.x(0, 0), moved1 = 1.2 - s.x(1, 0);
+    EXPECT_NEAR(moved0 + moved1, 0.2, 1e-6) << dynamic;  // the link is restored (to O(dt^2))
+    EXPECT_NEAR(moved0 / (moved0 + moved1), dynamic ? 0.25 : 0.5, 1e-4) << dynamic;
+  }
+}
+
+TEST(PbdSeed, GradedInverseMass) {
+  // A chain of 5 links pinned at the top: hop distances 0..5, d_c = 5/2, so
+  // w = 0.3 min(1, d / 2.5) = 0, 0.12, 0.24, 0.3, 0.3, 0.3.
+  const Model chain = chain_model(5, 0.1, 1.0, Vec3(0, -9.81, 0));
+  const std::vector<double> w = seed_graded_inverse_masses(chain);
+  const std::vector<double> expected = {0.0, 0.12, 0.24, 0.3, 0.3, 0.3};
+  ASSERT_EQ(w.size(), expected.size());
+  for (size_t i = 0; i < w.size(); ++i) EXPECT_NEAR(w[i], expected[i], kRoundoff) << i;
+  // Pinned at both ends (a 4-link chain): distances 0 1 2 1 0, d_c = 1: 0, 0.3, 0.3, 0.3, 0.
+  Model both = chain_model(4, 0.1, 1.0, Vec3(0, -9.81, 0));
+  both.inv_mass[4] = 0.0;
+  EXPECT_EQ(seed_graded_inverse_masses(both), (std::vector<double>{0.0, 0.3, 0.3, 0.3, 0.0}));
+  // A tet's four particles are all neighbours: one hop from the pin; a particle that no pin
+  // reaches keeps 0.3.
+  Model tet = empty_model();
+  add_particle(tet, Vec3(0, 0, 0), 0.0);
+  add_particle(tet, Vec3(1, 0, 0), 1.0);
+  add_particle(tet, Vec3(0, 1, 0), 1.0);
+  add_particle(tet, Vec3(0, 0, 1), 1.0);
+  add_particle(tet, Vec3(5, 5, 5), 1.0);
+  add_volume(tet, 0, 1, 2, 3, 1.0 / 6.0);
+  EXPECT_EQ(seed_graded_inverse_masses(tet), (std::vector<double>{0.0, 0.3, 0.3, 0.3, 0.3}));
+  // No pin: refused, by the function and by make_solver.
+  Model free = empty_model();
+  add_particle(free, Vec3::Zero(), 1.0);
+  EXPECT_THROW(seed_graded_inverse_masses(free), std::invalid_argument);
+  SolverOptions o = seed();
+  o.seed_graded_inverse_mass = true;
+  EXPECT_THROW(make_solver(o, free), std::invalid_argument);
+  // In a step (double, D3 fixed, alpha = 1, one sequential iteration, no gravity): a 4-link
+  // chain, w = 0, 0.15, 0.3, 0.3, 0.3 (d_c = 2), its second link stretched by 0.06. Link 0 is
+  // at rest; link 1 moves particle 1 by w1 / (w1 + w2) = 1/3 of the error, 0.02 (1/2 with the
+  // model's equal masses), and no later link touches particle 1.
+  const Model four = chain_model(4, 0.1, 1.0, Vec3::Zero());
+  for (bool graded : {false, true}) {
+    SolverOptions g = seed({"D3", "D10"}, 1);
+    g.seed_damping = 1.0;
+    g.seed_graded_inverse_mass = graded;
+    State s = rest_state(four);
+    for (int i = 2; i <= 4; ++i) s.x(i, 1) -= 0.06;
+    make_solver(g, four)->step(four, s, 0.01);
+    EXPECT_NEAR(s.x(1, 1), -0.1 - (graded ? 0.02 : 0.03), 1e-12) << graded;
+  }
+}
+
+TEST(PbdSeed, TuningOptionsAreValidated) {
+  SolverOptions o = seed();
+  o.seed_iteration_schedule = "sometimes";
+  EXPECT_NE(o.validate().find("solver.seed.iteration_schedule"), std::string::npos);
+  o = seed();
+  o.seed_fast_speed = 0.0;
+  EXPECT_NE(o.validate().find("solver.seed.fast_speed"), std::string::npos);
+  o = seed();
+  o.seed_backup = "never";
+  EXPECT_NE(o.validate().find("solver.seed.backup"), std::string::npos);
+  o = seed();
+  o.seed_dynamic_inverse_mass = o.seed_graded_inverse_mass = true;
+  EXPECT_NE(o.validate().find("graded_inverse_mass"), std::string::npos);
 }
 
 TEST(PbdSeed, TheListingTearsARestingChainApart) {

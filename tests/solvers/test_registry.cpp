@@ -9,12 +9,15 @@
 namespace pbdbench::test {
 namespace {
 
-// The PBD family's entries of the catalogue (the reference solvers, listed after them, have their
-// own tests in tests/reference/).
+// The PBD family's entries of the catalogue (the reference and global solvers, listed after them,
+// have their own tests in tests/reference/ and test_global.cpp; force-symplectic, which refuses
+// rigid constraints, in test_force_symplectic.cpp).
 std::vector<SolverInfo> pbd_family() {
   std::vector<SolverInfo> out;
   for (const SolverInfo& info : solver_catalog())
-    if (info.name.rfind("ref-", 0) != 0 && info.name.rfind("global-", 0) != 0) out.push_back(info);
+    if (info.name.rfind("ref-", 0) != 0 && info.name.rfind("global-", 0) != 0 &&
+        info.name != "force-symplectic")
+      out.push_back(info);
   return out;
 }
 

@@ -1,0 +1,82 @@
+// Running a claim's experiment and deciding its verdict:
+//
+//   runs      each [[run]] of the experiment, each trial, through the harness's run loop
+//             (harness/runner.hpp), one run file each; a file already holding the same finished
+//             configuration from the same build is read instead of run again (unless forced)
+//   measures  each [[measure]]: its value per trial from the run file, combined over the trials;
+//             or computed from the measures above it
+//   parts     each [[part]]'s rule over the measures: supported (true), contradicted (false), or
+//             not testable here (the part says why, or a measure it reads is NaN)
+//   verdict   of the claim: contradicted when a part is, else supported when a part is, else not
+//             testable here
+#pragma once
+
+#include <filesystem>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "claims/experiment.hpp"
+
+namespace pbdbench::claims {
+
+enum class Verdict { Supported, Contradicted, NotTestable };
+const char* to_string(Verdict verdict);  // "supported", "contradicted", "not testable"
+// Parses the names above; returns false when unknown.
+bool parse_verdict(const std::string& text, Verdict& out);
+
+struct RunResult {
+  std::string name;
+  std::vector<std::filesystem::path> files;  // one per trial
+  int complete = 0, exploded = 0, failed = 0, incomplete = 0;  // trials by status
+  int reused = 0;                  // trials read from an existing run file
+  std::string first_failure;       // the reason of the first failed trial, if any
+  double wall_time = 0.0;          // s, summed over the trials run now
+};
+
+struct MeasureResult {
+  std::string name;
+  std::string run;  // "" for a measure computed from other measures
+  std::string units;
+  std::string doc;
+  std::string expression;
+  std::string over_trials;
+  double value = 0.0;
+  std::vector<double> trials;  // per trial (a measure of a run)
+};
+
+struct PartResult {
+  std::string says;
+  std::string rule;  // "" when untestable
+  bool timing = false;
+  Verdict verdict = Verdict::NotTestable;
+  std::string reason;  // why not testable
+};
+
+struct ClaimResult {
+  std::string id;
+  std::string section;
+  std::string claim;
+  std::string experiment;
+  std::filesystem::path file;
+  FigureSpec figure;
+  std::vector<RunResult> runs;
+  std::vector<MeasureResult> measures;
+  std::vector<PartResult> parts;
+  Verdict verdict = Verdict::NotTestable;
+  double wall_time = 0.0;  // s
+};
+
+struct EvaluateOptions {
+  Tier tier = Tier::Full;
+  std::filesystem::path runs_dir;  // run files go to <runs_dir>/<id>/<run>[-<trial>].h5
+  bool force = false;              // run again even when a current run file exists
+  std::ostream* log = nullptr;     // a line per run
+};
+
+ClaimResult evaluate_claim(const Experiment& experiment, const EvaluateOptions& options);
+
+// The claim's verdict from its parts' (see the top of this file).
+Verdict combine_verdicts(const std::vector<PartResult>& parts);
+
+}  // namespace pbdbench::claims

@@ -1,0 +1,159 @@
+// A claim's experiment: one TOML file in claims/experiments/, written before its result is known,
+// so that a verdict can change only when a measurement changes. The file says which runs to make
+// (scenario, solver variants, seeded trials), what to measure from their run files, and the rule
+// that decides each part of the claim, with its thresholds.
+//
+//   id = "S5.4"                        # the row of the claims index (../shared/seed/CLAIMS.md)
+//   section = "5.4"
+//   claim = "..."                      # the claim, as the article makes it
+//   experiment = "..."                 # what is run and why, in a few sentences
+//   scenario = "failures/cyclic_penetration"   # default scenario of the runs
+//   [set]                              # overrides for every run, both tiers
+//   "time.duration" = 0.1
+//   [quick]                            # the quick tier (the test suite): fewer trials, shorter runs
+//   trials = 10                        # at most this many trials per run
+//   set = { "time.duration" = 0.05 }   # overrides for every run, quick tier only
+//   [[run]]
+//   name = "sequential"
+//   scenario = "..."                   # optional, else the experiment's
+//   set = { "solver.name" = "pbd", "solver.order" = "sequential" }
+//   quick_set = { ... }                # optional, quick tier only
+//   trials = 100                       # seeded trials: trial i sets trial_key = trial_base + i
+//   trial_key = "scene.seed"           # or several keys: ["scene.seed", "solver.shuffle_seed"]
+//   [[measure]]
+//   name = "rate_sequential"
+//   run = "sequential"                 # a measure of a run: `value` over its series, per trial,
+//   value = "final(penetration_max) > 0.0005"   # combined over trials by `over_trials`
+//   over_trials = "mean"               # mean | max | min | sum | median
+//   units = "1"
+//   doc = "fraction of trials still penetrating by more than 1 % of the radius"
+//   [[measure]]
+//   name = "cost_ratio"                # a measure without `run` is computed from earlier measures
+//   value = "time_global / time_sequential"
+//   [[part]]
+//   says = "shuffled groups take the penetration rate from 100 % to 3 %"
+//   rule = "rate_sequential >= 0.9 and rate_grouped <= 0.1"
+//   timing = false                     # true: the rule reads wall-clock times (machine dependent)
+//   # untestable = "why"               # instead of a rule: not testable here, and why
+//   [figure]
+//   kind = "series"                    # series: one series of several runs against time
+//   series = "kinetic_energy"          # bars: the measures listed, one bar each
+//   runs = ["seed", "pbd"]
+//   log = true
+//   ylabel = "kinetic energy (J)"
+//
+// Expressions are claims/expression.hpp's. Every error names the file, the line and the key.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "claims/expression.hpp"
+#include "config/config.hpp"
+
+namespace pbdbench::claims {
+
+enum class Tier { Quick, Full };
+const char* to_string(Tier tier);  // "quick", "full"
+
+struct RunSpec {
+  std::string name;
+  std::string scenario;  // catalog name or path (relative paths: to the experiment file)
+  std::vector<config::Override> set;        // both tiers
+  std::vector<config::Override> quick_set;  // quick tier only
+  int trials = 1;                           // full tier
+  std::vector<std::string> trial_keys;      // each set to trial_base + i in trial i (none: no
+                                            // trials); trial_key = "a" or ["a", "b"]
+  long trial_base = 1;
+  int line = 0;
+};
+
+struct MeasureSpec {
+  std::string name;
+  std::string run;  // "" for a measure computed from earlier measures
+  Expression value{"0"};
+  std::string over_trials = "mean";  // mean | max | min | sum | median
+  std::string units;
+  std::string doc;
+  int line = 0;
+};
+
+struct PartSpec {
+  std::string says;
+  std::optional<Expression> rule;  // absent when untestable
+  std::string untestable;          // the reason, when the part cannot be tested here
+  bool timing = false;             // the rule reads wall-clock times
+  int line = 0;
+};
+
+struct FigureSpec {
+  std::string kind = "none";  // none | series | bars
+  std::string series;         // series: the series plotted
+  std::vector<std::string> runs;      // series: the runs (trial 0 of each)
+  std::vector<std::string> measures;  // bars: the measures
+  bool log = false;
+  std::string ylabel;
+  std::string title;
+};
+
+struct Experiment {
+  std::filesystem::path file;
+  std::string id;
+  std::string section;
+  std::string claim;
+  std::string experiment;
+  std::string scenario;
+  std::vector<config::Override> set;
+  std::vector<config::Override> quick_set;
+  int quick_trials = 10;  // cap on the trials of each run in the quick tier
+  std::vector<RunSpec> runs;
+  std::vector<MeasureSpec> measures;
+  std::vector<PartSpec> parts;
+  FigureSpec figure;
+
+  const RunSpec* find_run(const std::string& name) const;
+  // The trials of a run in a tier, and the overrides of its trial i, in the order they apply:
+  // the experiment's set, the run's set, (quick) the experiment's and the run's quick sets, the
+  // trial key.
+  int trials(const RunSpec& run, Tier tier) const;
+  std::vector<config::Override> overrides(const RunSpec& run, Tier tier, int trial) const;
+  // The scenario a run loads, resolved against the experiment file's folder.
+  std::string scenario_of(const RunSpec& run) const;
+};
+
+class ExperimentError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Reads and checks an experiment file: unknown keys, wrong types, duplicate names, expressions
+// that do not parse or name unknown series, runs or measures (a measure may only use measures
+// defined above it). With `check_configs`, every run's configuration in both tiers is loaded
+// and validated too (nothing runs). Throws ExperimentError "file:line: key: message".
+Experiment load_experiment(const std::filesystem::path& file, bool check_configs = true);
+
+// Every *.toml in `dir`, in the order of the claims index (S1, S2.1a, S2.1b, ..., S5.4).
+std::vector<Experiment> load_experiments(const std::filesystem::path& dir,
+                                         bool check_configs = true);
+
+// Orders claim ids as the index does: by section numbers, then by letter ("S3.1" < "S3.1a").
+bool claim_id_less(const std::string& a, const std::string& b);
+
+// Where the experiments live: $PBDBENCH_CLAIMS when set, else <source dir>/claims/experiments.
+std::filesystem::path experiments_dir();
+
+// Names a measure expression may use: the width-1 series, the components of the width-3 series
+// (name.x, name.y, name.z), and the run's scalars (run_scalar_names()):
+//   exploded, complete, failed  1 or 0 by the run's status
+//   exploded_step, exploded_time  when the run exploded (NaN when it did not)
+//   steps_planned, steps_completed, wall_time (s), dt (s)
+//   particles, inv_mass_max, inv_mass_min  of the run's model (1/kg)
+//   pinned_drift  m, the largest distance a particle with inverse mass 0 moved from its place in
+//                 the first frame, over the written frames (kinematic particles move by design)
+std::vector<std::string> run_series_names();
+const std::vector<std::string>& run_scalar_names();
+
+}  // namespace pbdbench::claims

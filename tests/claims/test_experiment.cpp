@@ -1,0 +1,151 @@
+// claims/experiment: the catalog of experiments loads, and bad files are refused naming the file,
+// the line and the key.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include "claims/experiment.hpp"
+
+namespace pbdbench::claims {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The ids of the seed article's claims index (CLAIMS.md beside the article), in its order.
+const std::vector<std::string> kClaimIds = {
+    "S1",   "S2.1a", "S2.1b", "S2.2", "S2.3a", "S2.3b", "S3.1", "S3.1a", "S3.1b", "S3.1c", "S3.2",
+    "S3.3", "S3.4",  "S4.1",  "S4.2", "S4.3",  "S4.4",  "S4.5", "S5.1",  "S5.2",  "S5.3",  "S5.4"};
+
+fs::path write(const std::string& id, const std::string& text) {
+  const fs::path dir = fs::temp_directory_path() / "pbdbench_test_experiment";
+  fs::create_directories(dir);
+  const fs::path p = dir / (id + ".toml");
+  std::ofstream(p) << text;
+  return p;
+}
+
+const char* kGood = R"toml(id = "S9.9"
+section = "9.9"
+claim = "a particle falls"
+experiment = "a particle falls for 0.1 s"
+scenario = "free_fall"
+[set]
+"time.duration" = 0.1
+[quick]
+trials = 2
+set = { "time.duration" = 0.05 }
+[[run]]
+name = "pbd"
+set = { "solver.name" = "pbd" }
+trials = 3
+trial_key = "solver.shuffle_seed"
+[[measure]]
+name = "drop"
+run = "pbd"
+value = "initial(potential_energy) - final(potential_energy)"
+units = "J"
+doc = "energy lost"
+[[measure]]
+name = "twice"
+value = "2 * drop"
+doc = "twice that"
+[[part]]
+says = "it falls"
+rule = "drop > 0"
+[[part]]
+says = "it flies"
+untestable = "no wings"
+)toml";
+
+std::string error_of(const std::string& text) {
+  try {
+    load_experiment(write("S9.9", text));
+  } catch (const ExperimentError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+TEST(Experiment, EveryClaimOfTheIndexHasAnExperimentThatLoads) {
+  const std::vector<Experiment> all = load_experiments(fs::path(PBDBENCH_SOURCE_DIR) / "claims" / "experiments");
+  std::vector<std::string> ids;
+  for (const Experiment& e : all) ids.push_back(e.id);
+  EXPECT_EQ(ids, kClaimIds);  // in the index's order, none missing, none extra
+  for (const Experiment& e : all) {
+    EXPECT_FALSE(e.parts.empty()) << e.id;
+    EXPECT_FALSE(e.claim.empty()) << e.id;
+  }
+}
+
+TEST(Experiment, ReadsEveryPart) {
+  const Experiment e = load_experiment(write("S9.9", kGood));
+  EXPECT_EQ(e.id, "S9.9");
+  ASSERT_EQ(e.runs.size(), 1u);
+  EXPECT_EQ(e.trials(e.runs[0], Tier::Full), 3);
+  EXPECT_EQ(e.trials(e.runs[0], Tier::Quick), 2);
+  const auto o = e.overrides(e.runs[0], Tier::Quick, 1);
+  ASSERT_EQ(o.size(), 4u);  // [set], the run's set, [quick] set, the trial key
+  EXPECT_EQ(o[0].path, "time.duration");
+  EXPECT_EQ(o[1].value_text, "\"pbd\"");
+  EXPECT_EQ(o[2].value_text, "0.05");
+  EXPECT_EQ(o[3].path, "solver.shuffle_seed");
+  EXPECT_EQ(o[3].value_text, "2");  // trial_base 1 + trial 1
+  ASSERT_EQ(e.measures.size(), 2u);
+  EXPECT_TRUE(e.measures[1].run.empty());
+  ASSERT_EQ(e.parts.size(), 2u);
+  EXPECT_TRUE(e.parts[0].rule.has_value());
+  EXPECT_EQ(e.parts[1].untestable, "no wings");
+}
+
+TEST(Experiment, BadFilesAreRefusedNamingFileLineAndKey) {
+  struct Case {
+    std::string from, to, expected;
+  };
+  const std::vector<Case> cases = {
+      {"claim = ", "claimz = ", "S9.9.toml:3: claimz: unknown key"},
+      {"name = \"pbd\"\nset", "name = \"pbd\"\nsett", "run.sett: unknown key (did you mean 'run.set'?)"},
+      {"rule = \"drop > 0\"", "rule = \"dorp > 0\"", "part.rule: no measure named 'dorp'"},
+      {"value = \"2 * drop\"", "value = \"2 * twice\"", "'twice' is not a measure defined above"},
+      {"final(potential_energy)", "final(potential_enrgy)", "no series named 'potential_enrgy'"},
+      {"value = \"initial", "value = \"exploded + initial", ""},  // a run scalar is fine
+      {"value = \"initial", "value = \"bogus + initial", "'bogus' is not a run scalar"},
+      {"rule = \"drop > 0\"", "rule = \"drop >\"", "part.rule: in 'drop >' at column 7"},
+      {"\"solver.name\" = \"pbd\"", "\"solver.name\" = \"pdb\"", "run 'pbd' (full tier)"},
+      {"trials = 3\ntrial_key = \"solver.shuffle_seed\"", "trials = 3", "has trials but no trial_key"},
+      {"untestable = \"no wings\"", "rule = \"drop > 0\"\nuntestable = \"no wings\"", "either a rule or an untestable reason"},
+      {"id = \"S9.9\"", "id = \"S9.8\"", "does not match the file name"},
+  };
+  for (const Case& c : cases) {
+    const std::string err = error_of(replace(kGood, c.from, c.to));
+    if (c.expected.empty()) {
+      EXPECT_EQ(err, "no error") << c.to;
+    } else {
+      EXPECT_NE(err.find(c.expected), std::string::npos) << "expected '" << c.expected << "' in: " << err;
+      EXPECT_NE(err.find("S9.9.toml:"), std::string::npos) << err;
+    }
+  }
+}
+
+TEST(Experiment, ClaimIdsSortAsTheIndex) {
+  EXPECT_TRUE(claim_id_less("S1", "S2.1a"));
+  EXPECT_TRUE(claim_id_less("S3.1", "S3.1a"));
+  EXPECT_TRUE(claim_id_less("S3.1c", "S3.2"));
+  EXPECT_TRUE(claim_id_less("S4.5", "S5.1"));
+  EXPECT_FALSE(claim_id_less("S5.4", "S5.4"));
+  std::vector<std::string> ids = kClaimIds;
+  std::reverse(ids.begin(), ids.end());
+  std::sort(ids.begin(), ids.end(), claim_id_less);
+  EXPECT_EQ(ids, kClaimIds);
+}
+
+}  // namespace
+}  // namespace pbdbench::claims

@@ -1,0 +1,125 @@
+// claims/expression: parsing, precedence, NaN handling, reductions and the errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "claims/expression.hpp"
+
+namespace pbdbench::claims {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+class MapScope final : public Scope {
+ public:
+  std::map<std::string, double> scalars;
+  std::map<std::string, std::vector<double>> rows;
+  std::optional<double> scalar(const std::string& name) const override {
+    auto it = scalars.find(name);
+    if (it == scalars.end()) return std::nullopt;
+    return it->second;
+  }
+  const std::vector<double>* series(const std::string& name) const override {
+    auto it = rows.find(name);
+    return it == rows.end() ? nullptr : &it->second;
+  }
+  const std::vector<double>* times() const override { return series("time"); }
+};
+
+double eval(const std::string& text, const Scope& scope = MapScope()) {
+  return Expression(text).evaluate(scope);
+}
+
+TEST(Expression, ArithmeticAndPrecedence) {
+  EXPECT_DOUBLE_EQ(eval("1 + 2 * 3"), 7.0);
+  EXPECT_DOUBLE_EQ(eval("(1 + 2) * 3"), 9.0);
+  EXPECT_DOUBLE_EQ(eval("2 ^ 3 ^ 2"), 512.0);  // right associative
+  EXPECT_DOUBLE_EQ(eval("-2 ^ 2"), -4.0);
+  EXPECT_DOUBLE_EQ(eval("10 / 4 - 1"), 1.5);
+  EXPECT_DOUBLE_EQ(eval("0.98^50"), std::pow(0.98, 50));
+  EXPECT_DOUBLE_EQ(eval("1e-3 * 2"), 2e-3);
+}
+
+TEST(Expression, ComparisonsAndLogic) {
+  EXPECT_EQ(eval("1 < 2 and 3 >= 3"), 1.0);
+  EXPECT_EQ(eval("1 < 2 and 3 > 3"), 0.0);
+  EXPECT_EQ(eval("1 > 2 or 2 != 3"), 1.0);
+  EXPECT_EQ(eval("not 1 == 1"), 0.0);
+  EXPECT_EQ(eval("not (1 > 2) and 2 == 2"), 1.0);
+  EXPECT_EQ(eval("1 + 1 == 2"), 1.0);  // arithmetic binds tighter than comparison
+}
+
+TEST(Expression, NaNMeansNotMeasured) {
+  MapScope s;
+  s.scalars = {{"a", kNaN}, {"b", 1.0}};
+  EXPECT_TRUE(std::isnan(eval("a > 0", s)));
+  EXPECT_TRUE(std::isnan(eval("a + b", s)));
+  EXPECT_TRUE(std::isnan(eval("not a", s)));
+  EXPECT_TRUE(std::isnan(eval("a > 0 and b > 0", s)));
+  EXPECT_EQ(eval("a > 0 and b < 0", s), 0.0);  // false whatever a is
+  EXPECT_EQ(eval("a > 0 or b > 0", s), 1.0);   // true whatever a is
+  EXPECT_EQ(Expression("a > 0 and b > 0").nan_names(s), std::vector<std::string>{"a"});
+}
+
+TEST(Expression, Functions) {
+  EXPECT_DOUBLE_EQ(eval("abs(-3)"), 3.0);
+  EXPECT_DOUBLE_EQ(eval("sqrt(16)"), 4.0);
+  EXPECT_DOUBLE_EQ(eval("log10(1000)"), 3.0);
+  EXPECT_DOUBLE_EQ(eval("min(3, 1, 2)"), 1.0);
+  EXPECT_DOUBLE_EQ(eval("max(3, 1, 2)"), 3.0);
+}
+
+TEST(Expression, ReductionsSkipTheInitialRowAndNaN) {
+  MapScope s;
+  s.rows["time"] = {0.0, 1.0, 2.0, 3.0, 4.0};
+  s.rows["e"] = {100.0, 1.0, kNaN, 3.0, -5.0};
+  EXPECT_DOUBLE_EQ(eval("initial(e)", s), 100.0);
+  EXPECT_DOUBLE_EQ(eval("final(e)", s), -5.0);
+  EXPECT_DOUBLE_EQ(eval("max(e)", s), 3.0);  // the initial row is not a step
+  EXPECT_DOUBLE_EQ(eval("min(e)", s), -5.0);
+  EXPECT_DOUBLE_EQ(eval("maxabs(e)", s), 5.0);
+  EXPECT_DOUBLE_EQ(eval("mean(e)", s), (1.0 + 3.0 - 5.0) / 3.0);
+  EXPECT_DOUBLE_EQ(eval("sum(e)", s), -1.0);
+  EXPECT_DOUBLE_EQ(eval("at(e, 3.5)", s), 3.0);
+  EXPECT_DOUBLE_EQ(eval("mean_from(e, 3)", s), -1.0);
+  EXPECT_DOUBLE_EQ(eval("max_from(e, 1.5)", s), 3.0);
+  EXPECT_DOUBLE_EQ(eval("min_from(e, 0)", s), -5.0);
+  EXPECT_TRUE(std::isnan(eval("mean_from(e, 10)", s)));  // no row in the window
+  EXPECT_DOUBLE_EQ(eval("final(e) / initial(e) + 1", s), 0.95);
+}
+
+TEST(Expression, ListsTheNamesItUses) {
+  const Expression e("mean_from(kinetic_energy, t0) > 2 * final(height_min) and exploded == 0");
+  EXPECT_EQ(e.series_names(), (std::vector<std::string>{"kinetic_energy", "height_min"}));
+  EXPECT_EQ(e.scalar_names(), (std::vector<std::string>{"t0", "exploded"}));
+}
+
+TEST(Expression, BadTextIsRefusedWithTheColumn) {
+  auto message = [](const std::string& text) {
+    try {
+      Expression e(text);
+    } catch (const std::invalid_argument& err) {
+      return std::string(err.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("1 +").find("column 4"), std::string::npos) << message("1 +");
+  EXPECT_NE(message("(1 + 2").find("expected ')'"), std::string::npos);
+  EXPECT_NE(message("frobnicate(x)").find("unknown function 'frobnicate'"), std::string::npos);
+  EXPECT_NE(message("final(1)").find("takes the name of a series"), std::string::npos);
+  EXPECT_NE(message("at(e)").find("takes the name of a series and 1 number"), std::string::npos);
+  EXPECT_NE(message("1 < 2 < 3").find("comparisons do not chain"), std::string::npos);
+  EXPECT_NE(message("a and or 1").find("where a value was expected"), std::string::npos);
+  EXPECT_NE(message("abs(1, 2)").find("takes one argument"), std::string::npos);
+}
+
+TEST(Expression, UnknownNamesAreErrorsWhenEvaluated) {
+  MapScope s;
+  EXPECT_THROW(eval("missing > 1", s), std::invalid_argument);
+  EXPECT_THROW(eval("final(missing)", s), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pbdbench::claims
