@@ -52,6 +52,7 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
 
   log << fmt::format("claims: {} experiment{}, {} tier, run files in {}\n", chosen.size(),
                      chosen.size() == 1 ? "" : "s", tier, options.runs_dir.string());
+  out << "id      verdict       parts (S supported, C contradicted, - not testable), time\n";
   std::vector<ClaimResult> results;
   for (const Experiment& e : chosen) {
     results.push_back(evaluate_claim(e, options));

@@ -2,6 +2,8 @@
 # The README's first command: installs what is missing, builds what is stale, runs the default
 # study (studies/default/*.toml) on small scenes, writes one HDF5 file per run under
 # results/study/, draws the plots as PNG, and prints a table of what was measured.
+# Then the seed article's claims, quick tier (claims/: 22 experiments, a few seconds): their
+# verdicts are printed and their report and figures written to results/claims/quick/.
 # A second run reuses every run file made by the same build with the same configuration.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -18,3 +20,7 @@ for sweep in "$root"/studies/default/*.toml; do
 done
 
 /usr/bin/python3 "$root/scripts/plot_default_study.py" "$out"
+
+echo
+echo "The seed article's claims (quick tier; the full report: build/pbdbench claims -> paper/claims/):"
+"$build/pbdbench" claims --tier quick --out "$root/results/claims/quick" 2>/dev/null
