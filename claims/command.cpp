@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <iterator>
 #include <ostream>
 
 #include <fmt/format.h>
@@ -14,8 +15,17 @@ namespace pbdbench::claims {
 namespace fs = std::filesystem;
 
 namespace {
+// Writes `text` unless the file already holds it (so that a rerun that reused every run file
+// leaves the report's time stamps alone and the figures are not redrawn).
 void write_text(const fs::path& path, const std::string& text) {
   fs::create_directories(path.parent_path());
+  {
+    std::ifstream in(path, std::ios::binary);
+    if (in) {
+      const std::string old((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      if (old == text) return;
+    }
+  }
   std::ofstream f(path, std::ios::binary);
   f << text;
   if (!f) throw std::runtime_error("cannot write " + path.string());

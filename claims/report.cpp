@@ -194,7 +194,7 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
   for (size_t i = 0; i < claims.size(); ++i) {
     const ClaimResult& c = claims[i];
     js << "    {\"id\": " << json_string(c.id) << ", \"section\": " << json_string(c.section)
-       << ", \"verdict\": " << json_string(to_string(c.verdict)) << ", \"wall_time\": " << json_number(c.wall_time)
+       << ", \"verdict\": " << json_string(to_string(c.verdict))
        << ",\n     \"claim\": " << json_string(c.claim) << ",\n     \"figure\": {\"kind\": "
        << json_string(c.figure.kind) << ", \"series\": " << json_string(c.figure.series) << ", \"runs\": [";
     for (size_t k = 0; k < c.figure.runs.size(); ++k) js << (k ? ", " : "") << json_string(c.figure.runs[k]);

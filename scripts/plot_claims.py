@@ -9,7 +9,8 @@ Each claim's [figure] (claims/experiment.hpp) is one of:
     bars     the listed measures, one bar each, labelled with their values; a NaN measure is
              drawn as an empty bar labelled "NaN"
 The verdict is written in the title. Run files are found relative to REPORT_DIR (claims.json
-stores them so); a missing run file leaves the figure out with a warning, it does not fail.
+stores them so); a missing run file leaves the figure out with a warning, it does not fail. A
+figure newer than claims.json and than the run files it reads is up to date and not redrawn.
 """
 import json
 import math
@@ -100,6 +101,24 @@ def plot_bars(ax, claim):
     return len(names)
 
 
+def up_to_date(target, json_time, claim, report_dir):
+    """True when the figure exists and is newer than claims.json and the run files it reads."""
+    if not os.path.exists(target):
+        return False
+    t = os.path.getmtime(target)
+    if t < json_time:
+        return False
+    if claim["figure"]["kind"] == "series":
+        runs = {r["name"]: r for r in claim["runs"]}
+        for name in claim["figure"]["runs"]:
+            files = runs.get(name, {}).get("files", [])
+            if files:
+                path = os.path.join(report_dir, files[0])
+                if not os.path.exists(path) or os.path.getmtime(path) > t:
+                    return False
+    return True
+
+
 def main(argv):
     if len(argv) != 2:
         print(__doc__, file=sys.stderr)
@@ -109,10 +128,15 @@ def main(argv):
         report = json.load(f)
     out_dir = os.path.join(report_dir, "figures")
     os.makedirs(out_dir, exist_ok=True)
-    written = 0
+    written = current = 0
+    json_time = os.path.getmtime(os.path.join(report_dir, "claims.json"))
     for claim in report["claims"]:
         kind = claim["figure"]["kind"]
         if kind == "none":
+            continue
+        target = os.path.join(out_dir, claim["id"] + ".png")
+        if up_to_date(target, json_time, claim, report_dir):
+            current += 1
             continue
         fig, ax = plt.subplots(figsize=(6.4, 3.8))
         drawn = plot_series(ax, claim, report_dir) if kind == "series" else plot_bars(ax, claim)
@@ -121,12 +145,12 @@ def main(argv):
         ax.grid(True, alpha=0.3)
         fig.tight_layout()
         if drawn:
-            fig.savefig(os.path.join(out_dir, claim["id"] + ".png"), dpi=110)
+            fig.savefig(target, dpi=110)
             written += 1
         else:
             print(f"plot_claims.py: {claim['id']}: nothing to draw", file=sys.stderr)
         plt.close(fig)
-    print(f"plot_claims.py: {written} figures -> {out_dir}")
+    print(f"plot_claims.py: {written} figures drawn, {current} up to date -> {out_dir}")
     return 0
 
 
