@@ -175,6 +175,32 @@ const char* to_string(Verdict verdict) {
   return "?";
 }
 
+const char* verdict_word(Verdict verdict, ExperimentKind kind) {
+  if (kind == ExperimentKind::Reproduction && verdict != Verdict::NotTestable)
+    return verdict == Verdict::Supported ? "reproduced" : "not reproduced";
+  return to_string(verdict);
+}
+
+std::vector<PlannedRun> plan_runs(const Experiment& ex, const EvaluateOptions& options) {
+  std::vector<PlannedRun> out;
+  for (const RunSpec& run : ex.runs) {
+    const int trials = ex.trials(run, options.tier);
+    for (int trial = 0; trial < trials; ++trial) {
+      PlannedRun p;
+      p.experiment = ex.id;
+      p.run = run.name;
+      p.trial = trial;
+      p.scenario = config::resolve_scenario(ex.scenario_of(run)).string();
+      p.overrides = ex.overrides(run, options.tier, trial);
+      p.file = options.runs_dir / ex.id / (trial_stem(run, trials, trial) + ".h5");
+      const config::Config cfg = config::load(p.scenario, p.overrides);
+      p.current = run_is_current(p.file, cfg.to_toml());
+      out.push_back(std::move(p));
+    }
+  }
+  return out;
+}
+
 bool parse_verdict(const std::string& text, Verdict& out) {
   for (Verdict v : {Verdict::Supported, Verdict::Contradicted, Verdict::NotTestable}) {
     if (text == to_string(v)) {
@@ -197,6 +223,8 @@ Verdict combine_verdicts(const std::vector<PartResult>& parts) {
 ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   ClaimResult result;
+  result.kind = ex.kind;
+  result.paper = ex.paper;
   result.id = ex.id;
   result.section = ex.section;
   result.claim = ex.claim;
@@ -265,6 +293,13 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
     PartResult pr;
     pr.says = p.says;
     pr.timing = p.timing;
+    pr.published = p.published;
+    pr.source = p.source;
+    pr.ours = p.ours;
+    if (!p.ours.empty()) {
+      for (const MeasureResult& m : result.measures)
+        if (m.name == p.ours) pr.ours_value = m.value, pr.ours_units = m.units;
+    }
     if (!p.rule) {
       pr.verdict = Verdict::NotTestable;
       pr.reason = p.untestable;

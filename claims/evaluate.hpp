@@ -22,6 +22,9 @@ namespace pbdbench::claims {
 
 enum class Verdict { Supported, Contradicted, NotTestable };
 const char* to_string(Verdict verdict);  // "supported", "contradicted", "not testable"
+// The word a report uses: a claim is "supported" or "contradicted", a reproduction "reproduced"
+// or "not reproduced"; "not testable" either way.
+const char* verdict_word(Verdict verdict, ExperimentKind kind);
 // Parses the names above; returns false when unknown.
 bool parse_verdict(const std::string& text, Verdict& out);
 
@@ -47,6 +50,11 @@ struct MeasureResult {
 
 struct PartResult {
   std::string says;
+  std::string published;  // reproductions: as printed
+  std::string source;
+  std::string ours;       // the measure beside it ("" when none)
+  double ours_value = 0.0;
+  std::string ours_units;
   std::string rule;  // "" when untestable
   bool timing = false;
   Verdict verdict = Verdict::NotTestable;
@@ -54,6 +62,8 @@ struct PartResult {
 };
 
 struct ClaimResult {
+  ExperimentKind kind = ExperimentKind::Claim;
+  std::string paper;
   std::string id;
   std::string section;
   std::string claim;
@@ -75,6 +85,19 @@ struct EvaluateOptions {
 };
 
 ClaimResult evaluate_claim(const Experiment& experiment, const EvaluateOptions& options);
+
+// The run files an experiment needs in a tier, in a stable order (runs, then trials), with the
+// configuration each must hold; `current` when the file already holds it from this build.
+struct PlannedRun {
+  std::string experiment;  // id
+  std::string run;         // name
+  int trial = 0;
+  std::string scenario;    // what `pbdbench run` loads
+  std::vector<config::Override> overrides;
+  std::filesystem::path file;
+  bool current = false;
+};
+std::vector<PlannedRun> plan_runs(const Experiment& experiment, const EvaluateOptions& options);
 
 // The claim's verdict from its parts' (see the top of this file).
 Verdict combine_verdicts(const std::vector<PartResult>& parts);

@@ -16,6 +16,10 @@ namespace fs = std::filesystem;
 
 const char* to_string(Tier tier) { return tier == Tier::Quick ? "quick" : "full"; }
 
+const char* to_string(ExperimentKind kind) {
+  return kind == ExperimentKind::Claim ? "claim" : "reproduction";
+}
+
 namespace {
 
 [[noreturn]] void fail(const fs::path& file, int line, const std::string& key,
@@ -201,8 +205,13 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   Experiment ex;
   ex.file = file;
   const TableReader top(root, file, "",
-                        {"id", "section", "claim", "experiment", "scenario", "set", "quick", "run",
-                         "measure", "part", "figure"});
+                        {"kind", "paper", "id", "section", "claim", "experiment", "scenario", "set",
+                         "quick", "run", "measure", "part", "figure"});
+  const std::string kind = top.string("kind", false, "claim");
+  if (kind != "claim" && kind != "reproduction")
+    fail(file, top.line(), "kind", "'" + kind + "' is not one of claim, reproduction");
+  ex.kind = kind == "claim" ? ExperimentKind::Claim : ExperimentKind::Reproduction;
+  ex.paper = top.string("paper", ex.kind == ExperimentKind::Reproduction);
   ex.id = top.string("id", true);
   ex.section = top.string("section", true);
   ex.claim = top.string("claim", true);
@@ -287,10 +296,16 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
 
   // Parts.
   for (const toml::table* t : array_of_tables(root, "part", file)) {
-    const TableReader r(*t, file, "part.", {"says", "rule", "untestable", "timing"});
+    const TableReader r(*t, file, "part.",
+                        {"says", "rule", "untestable", "timing", "published", "source", "ours"});
     PartSpec p;
     p.line = r.line();
     p.says = r.string("says", true);
+    p.published = r.string("published", false);
+    p.source = r.string("source", false);
+    p.ours = r.string("ours", false);
+    if (!p.ours.empty() && !measure_names.count(p.ours))
+      fail(file, p.line, "part.ours", "no measure named '" + p.ours + "'");
     p.untestable = r.string("untestable", false);
     p.timing = r.boolean("timing", false);
     const bool has_rule = r.node("rule") != nullptr;
@@ -367,7 +382,12 @@ std::pair<std::vector<int>, std::string> id_key(const std::string& id) {
 }
 }  // namespace
 
-bool claim_id_less(const std::string& a, const std::string& b) { return id_key(a) < id_key(b); }
+bool claim_id_less(const std::string& a, const std::string& b) {
+  const bool ca = !a.empty() && a[0] == 'S', cb = !b.empty() && b[0] == 'S';
+  if (ca != cb) return ca;
+  if (!ca) return a < b;
+  return id_key(a) < id_key(b);
+}
 
 std::vector<Experiment> load_experiments(const fs::path& dir, bool check_configs) {
   std::vector<Experiment> out;
@@ -381,6 +401,8 @@ std::vector<Experiment> load_experiments(const fs::path& dir, bool check_configs
             [](const Experiment& a, const Experiment& b) { return claim_id_less(a.id, b.id); });
   return out;
 }
+
+fs::path reproductions_dir() { return fs::path(PBDBENCH_SOURCE_DIR) / "reproductions"; }
 
 fs::path experiments_dir() {
   if (const char* env = std::getenv("PBDBENCH_CLAIMS"); env != nullptr && *env != '\0') return env;

@@ -3,6 +3,8 @@
 // (scenario, solver variants, seeded trials), what to measure from their run files, and the rule
 // that decides each part of the claim, with its thresholds.
 //
+//   kind = "claim"                     # or "reproduction" (then `paper` names the publication,
+//                                      #   and each part may carry published, source and ours)
 //   id = "S5.4"                        # the row of the claims index (../shared/seed/CLAIMS.md)
 //   section = "5.4"
 //   claim = "..."                      # the claim, as the article makes it
@@ -34,6 +36,9 @@
 //   says = "shuffled groups take the penetration rate from 100 % to 3 %"
 //   rule = "rate_sequential >= 0.9 and rate_grouped <= 0.1"
 //   timing = false                     # true: the rule reads wall-clock times (machine dependent)
+//   published = "6 %"                  # reproductions: the published number, as printed,
+//   source = "sec. 6.2, fig. 5"        #   where it is printed,
+//   ours = "rate_sequential"           #   and the measure shown beside it
 //   # untestable = "why"               # instead of a rule: not testable here, and why
 //   [figure]
 //   kind = "series"                    # series: one series of several runs against time
@@ -59,6 +64,12 @@ namespace pbdbench::claims {
 enum class Tier { Quick, Full };
 const char* to_string(Tier tier);  // "quick", "full"
 
+// What an experiment tests: a claim of the seed article (verdicts supported / contradicted), or a
+// published result it reproduces (reproduced / not reproduced, each part beside the published
+// number). The two differ only in wording and in the fields a reproduction's parts carry.
+enum class ExperimentKind { Claim, Reproduction };
+const char* to_string(ExperimentKind kind);  // "claim", "reproduction"
+
 struct RunSpec {
   std::string name;
   std::string scenario;  // catalog name or path (relative paths: to the experiment file)
@@ -83,6 +94,9 @@ struct MeasureSpec {
 
 struct PartSpec {
   std::string says;
+  std::string published;  // reproductions: the published number or relation, as printed
+  std::string source;     // reproductions: where it is printed (paper, section, figure or table)
+  std::string ours;       // reproductions: the measure shown beside the published number
   std::optional<Expression> rule;  // absent when untestable
   std::string untestable;          // the reason, when the part cannot be tested here
   bool timing = false;             // the rule reads wall-clock times
@@ -101,6 +115,8 @@ struct FigureSpec {
 
 struct Experiment {
   std::filesystem::path file;
+  ExperimentKind kind = ExperimentKind::Claim;
+  std::string paper;  // reproductions: the publication reproduced ("Macklin et al. 2016")
   std::string id;
   std::string section;
   std::string claim;
@@ -135,15 +151,18 @@ class ExperimentError : public std::runtime_error {
 // and validated too (nothing runs). Throws ExperimentError "file:line: key: message".
 Experiment load_experiment(const std::filesystem::path& file, bool check_configs = true);
 
-// Every *.toml in `dir`, in the order of the claims index (S1, S2.1a, S2.1b, ..., S5.4).
+// Every *.toml in `dir`, in the order of the claims index (S1, S2.1a, S2.1b, ..., S5.4); ids that
+// are not claim ids sort by their text after them.
 std::vector<Experiment> load_experiments(const std::filesystem::path& dir,
                                          bool check_configs = true);
 
 // Orders claim ids as the index does: by section numbers, then by letter ("S3.1" < "S3.1a").
 bool claim_id_less(const std::string& a, const std::string& b);
 
-// Where the experiments live: $PBDBENCH_CLAIMS when set, else <source dir>/claims/experiments.
+// Where the experiments live: $PBDBENCH_CLAIMS when set, else <source dir>/claims/experiments;
+// the reproductions: <source dir>/reproductions.
 std::filesystem::path experiments_dir();
+std::filesystem::path reproductions_dir();
 
 // Names a measure expression may use: the width-1 series, the components of the width-3 series
 // (name.x, name.y, name.z), and the run's scalars (run_scalar_names()):

@@ -32,7 +32,7 @@ struct Reduction {
 constexpr Reduction kReductions[] = {
     {"initial", 0},  {"final", 0},    {"max", 0},      {"min", 0},      {"mean", 0},
     {"sum", 0},      {"maxabs", 0},   {"at", 1},       {"max_from", 1}, {"min_from", 1},
-    {"mean_from", 1}, {"maxabs_from", 1},
+    {"mean_from", 1}, {"maxabs_from", 1}, {"period", 0},  {"period_from", 1},
 };
 constexpr const char* kNumericFunctions[] = {"abs", "sqrt", "log10", "min", "max"};
 
@@ -248,9 +248,28 @@ double reduce(const std::string& fn, const std::vector<double>& rows, const std:
   if (rows.empty()) return kNaN;
   if (fn == "initial") return rows.front();
   if (fn == "final") return rows.back();
-  const bool timed = fn == "at" || fn.ends_with("_from");
+  const bool timed = fn == "at" || fn.ends_with("_from") || fn == "period";
   if (timed && (t == nullptr || t->size() != rows.size()))
     throw std::invalid_argument(fn + "(" + name + ", ...) needs the times of a run");
+  if (fn == "period" || fn == "period_from") {
+    // Mean time between successive upward crossings of the mean of the rows considered (the
+    // steps with time >= t0), each crossing time interpolated linearly.
+    const double t0 = fn == "period" ? -1e300 : arg;
+    double sum = 0.0;
+    long n = 0;
+    for (size_t i = 1; i < rows.size(); ++i)
+      if ((*t)[i] >= t0 - 1e-12 && std::isfinite(rows[i])) sum += rows[i], ++n;
+    if (n < 3) return kNaN;
+    const double mean = sum / static_cast<double>(n);
+    std::vector<double> up;
+    for (size_t i = 2; i < rows.size(); ++i) {
+      if ((*t)[i - 1] < t0 - 1e-12) continue;
+      const double a = rows[i - 1] - mean, b = rows[i] - mean;
+      if (a < 0.0 && b >= 0.0) up.push_back((*t)[i - 1] + ((*t)[i] - (*t)[i - 1]) * (-a) / (b - a));
+    }
+    if (up.size() < 2) return kNaN;
+    return (up.back() - up.front()) / static_cast<double>(up.size() - 1);
+  }
   if (fn == "at") {
     double v = kNaN;
     for (size_t i = 0; i < rows.size(); ++i)

@@ -22,6 +22,9 @@
 //   max(s), min(s), mean(s), sum(s), maxabs(s)   over the rows after the initial one (the steps)
 //   at(s, t)             the row with the largest time <= t
 //   max_from(s, t0), min_from(s, t0), mean_from(s, t0), maxabs_from(s, t0)   over steps with time >= t0
+//   period(s), period_from(s, t0)   the mean time between successive upward crossings of the
+//                        series' mean (over the steps, or those with time >= t0), crossings
+//                        interpolated linearly; NaN with fewer than two crossings
 // A reduction skips NaN rows; over no finite row it gives NaN. (max/min with two or more numeric
 // arguments are the functions of numbers.)
 #pragma once

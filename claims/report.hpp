@@ -23,6 +23,7 @@ struct ReportContext {
   std::string build;    // e.g. "0.1.0 Release, GNU 12.2.0, commit abc123"
   std::string command;  // the command line that made the report
   std::filesystem::path figures_dir;  // relative to the report's folder ("figures")
+  int jobs = 1;                       // runs made at a time (timings share the cores when > 1)
 };
 
 // The machine this process runs on: the CPU model and the number of cores.
@@ -30,6 +31,8 @@ std::string machine_description();
 // The build: version, build type, compiler, commit.
 std::string build_description();
 
+// The claims' report, or, when the experiments are reproductions, the reproductions' report (a
+// row per published number: published, source, ours, rule, verdict).
 std::string report_markdown(const std::vector<ClaimResult>& claims, const ReportContext& context);
 std::string results_json(const std::vector<ClaimResult>& claims, const ReportContext& context,
                          const std::filesystem::path& relative_to);

@@ -138,6 +138,20 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   return kExitFailure;
 }
 
+// "--shard I/N" -> (I, N); a ConfigError (bad input) unless 0 <= I < N.
+void parse_shard(const std::string& shard, int& index, int& count) {
+  const auto slash = shard.find('/');
+  try {
+    if (slash == std::string::npos) throw std::invalid_argument("no slash");
+    index = std::stoi(shard.substr(0, slash));
+    count = std::stoi(shard.substr(slash + 1));
+  } catch (const std::exception&) {
+    throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
+  }
+  if (count < 1 || index < 0 || index >= count)
+    throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
+}
+
 int cmd_sweep(const std::string& file, const std::string& out_arg, int jobs, bool force, const std::string& shard,
               const std::vector<std::string>& sets, bool quiet) {
   const SweepSpec spec = load_sweep(file);
@@ -148,18 +162,7 @@ int cmd_sweep(const std::string& file, const std::string& out_arg, int jobs, boo
   opt.extra = parse_overrides(sets);
   opt.executable = self_executable();
   opt.progress = !quiet;
-  if (!shard.empty()) {
-    const auto slash = shard.find('/');
-    try {
-      if (slash == std::string::npos) throw std::invalid_argument("no slash");
-      opt.shard_index = std::stoi(shard.substr(0, slash));
-      opt.shard_count = std::stoi(shard.substr(slash + 1));
-    } catch (const std::exception&) {
-      throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
-    }
-    if (opt.shard_count < 1 || opt.shard_index < 0 || opt.shard_index >= opt.shard_count)
-      throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
-  }
+  if (!shard.empty()) parse_shard(shard, opt.shard_index, opt.shard_count);
   const SweepResult result = run_sweep(spec, opt, std::cout);
   std::vector<SummaryEntry> entries;
   size_t k = 0;
@@ -303,8 +306,9 @@ int cmd_claims(claims::ClaimsCommand command, bool plots, int argc, char** argv)
     command.command_line += (i ? " " : "") + a;
   }
   const claims::ClaimsOutcome outcome = claims::run_claims(command, std::cout, std::cerr);
+  if (outcome.out.empty()) return outcome.failed_runs > 0 ? kExitFailure : kExitOk;  // a shard
   if (plots) {
-    const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_claims.py";
+    const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_claims.py";  // both reports
     const int rc = run_python(script, {outcome.out.string()});
     if (rc != 0) {
       std::cerr << "pbdbench: the figures were not drawn (" << script << " exited " << rc << ")\n";
@@ -395,25 +399,37 @@ int main(int argc, char** argv) {
   converge->add_option("--out", out, "Convergence file (HDF5) to write")->required();
   converge->add_flag("--quiet", quiet, "No progress lines on stderr");
 
+  // claims and paper: the same engine on two folders of experiments (claims/experiments,
+  // reproductions/), with the same options.
   claims::ClaimsCommand claims_cmd;
-  std::string tier = "full";
+  std::string tier = "full", experiment_shard;
   bool no_plots = false;
+  int slurm = 0;
+  auto add_experiment_options = [&](CLI::App* sub, const std::string& default_out, const std::string& what) {
+    sub->add_option("ids", claims_cmd.ids, "Ids (default: every " + what + ")");
+    sub->add_option("--tier", tier, "quick (seconds, the test suite) or full (the report)")
+        ->check(CLI::IsMember({"quick", "full"}));
+    sub->add_option("--out", claims_cmd.out,
+                    "Report folder (default " + default_out + " for every " + what +
+                        " in the full tier, else results/<command>/<tier>)");
+    sub->add_option("--runs", claims_cmd.runs, "Run files folder (default results/<command>/<tier>/runs)");
+    sub->add_option("--experiments", claims_cmd.experiments, "Folder of experiment files");
+    sub->add_flag("--force", claims_cmd.force, "Run again even when current run files exist");
+    sub->add_option("--jobs,-j", claims_cmd.jobs, "Runs at once, in child processes (default 1: in this process)")
+        ->check(CLI::PositiveNumber);
+    sub->add_option("--shard", experiment_shard, "Make only the runs of shard I of N (I/N, 0-based), no report");
+    sub->add_option("--slurm", slurm, "Print a Slurm job-array script of N shards and exit")
+        ->check(CLI::PositiveNumber);
+    sub->add_option("--record", claims_cmd.record, "Write every part's verdict to this file");
+    sub->add_option("--expect", claims_cmd.expect, "Compare the verdicts with this record; exit 5 when one differs");
+    sub->add_flag("--no-plots", no_plots, "Do not draw the figures");
+  };
   auto* claims_sub = app.add_subcommand(
       "claims", "Run the seed article's claims as experiments and write the report with verdicts");
-  claims_sub->add_option("ids", claims_cmd.ids, "Claim ids (default: every claim), e.g. S5.4");
-  claims_sub->add_option("--tier", tier, "quick (seconds, the test suite) or full (the report)")
-      ->check(CLI::IsMember({"quick", "full"}));
-  claims_sub->add_option("--out", claims_cmd.out,
-                         "Report folder (default paper/claims for every claim in the full tier, "
-                         "else results/claims/<tier>)");
-  claims_sub->add_option("--runs", claims_cmd.runs, "Run files folder (default results/claims/<tier>/runs)");
-  claims_sub->add_option("--experiments", claims_cmd.experiments,
-                         "Folder of experiment files (default claims/experiments)");
-  claims_sub->add_flag("--force", claims_cmd.force, "Run again even when current run files exist");
-  claims_sub->add_option("--record", claims_cmd.record, "Write every part's verdict to this file");
-  claims_sub->add_option("--expect", claims_cmd.expect,
-                         "Compare the verdicts with this record; exit 5 when one differs");
-  claims_sub->add_flag("--no-plots", no_plots, "Do not draw the figures");
+  add_experiment_options(claims_sub, "paper/claims", "claim");
+  auto* paper_sub = app.add_subcommand(
+      "paper", "Run the paper reproductions and write paper/: each published number beside ours");
+  add_experiment_options(paper_sub, "paper", "reproduction");
 
   try {
     app.parse(argc, argv);
@@ -430,8 +446,15 @@ int main(int argc, char** argv) {
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);
-    if (*claims_sub) {
+    if (*claims_sub || *paper_sub) {
+      claims_cmd.kind = *claims_sub ? claims::ExperimentKind::Claim : claims::ExperimentKind::Reproduction;
       claims_cmd.tier = tier == "quick" ? claims::Tier::Quick : claims::Tier::Full;
+      claims_cmd.executable = self_executable();
+      if (!experiment_shard.empty()) parse_shard(experiment_shard, claims_cmd.shard_index, claims_cmd.shard_count);
+      if (slurm > 0) {
+        std::cout << claims::slurm_script(claims_cmd, slurm);
+        return kExitOk;
+      }
       return cmd_claims(claims_cmd, !no_plots, argc, argv);
     }
     if (*series) {

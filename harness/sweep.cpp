@@ -139,6 +139,53 @@ std::string status_from_exit(int wstatus) {
 
 }  // namespace
 
+void run_children(const fs::path& executable, const std::vector<ChildRun>& runs, int jobs,
+                  const std::function<void(size_t, const std::string&, const std::string&)>& on_done) {
+  std::map<pid_t, size_t> running;
+  size_t next = 0, done = 0;
+  auto launch = [&](size_t k) {
+    const ChildRun& r = runs[k];
+    std::vector<std::string> args = {executable.string(), "run", r.scenario};
+    for (const auto& o : r.overrides) {
+      args.push_back("--set");
+      args.push_back(o.path + "=" + o.value_text);
+    }
+    args.push_back("--out");
+    args.push_back(r.file.string());
+    args.push_back("--quiet");
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    fs::create_directories(r.file.parent_path());
+    const std::string log_path = fs::path(r.file).replace_extension(".log").string();
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+    pid_t pid = 0;
+    const int rc = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) throw std::runtime_error("cannot start " + executable.string() + ": " + std::strerror(rc));
+    running[pid] = k;
+  };
+  while (done < runs.size()) {
+    while (running.size() < static_cast<size_t>(std::max(jobs, 1)) && next < runs.size()) launch(next++);
+    int wstatus = 0;
+    const pid_t pid = waitpid(-1, &wstatus, 0);
+    if (pid < 0) throw std::runtime_error("waitpid failed");
+    auto it = running.find(pid);
+    if (it == running.end()) continue;
+    const size_t k = it->second;
+    running.erase(it);
+    ++done;
+    const std::string status = status_from_exit(wstatus);
+    std::string message;
+    const fs::path log_path = fs::path(runs[k].file).replace_extension(".log");
+    if (status == "failed" || status == "incomplete") message = tail_of(log_path, 8);
+    on_done(k, status, message);
+  }
+}
+
 bool SweepResult::ok() const {
   return std::none_of(runs.begin(), runs.end(), [](const SweepRunResult& r) {
     return r.status == "failed" || r.status == "refused" || r.status == "incomplete";
@@ -299,51 +346,22 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
   log << ", " << skipped << " already complete, " << pending.size() << " to run, " << options.jobs
       << " at a time -> " << options.out_dir.string() << "\n";
 
-  std::map<pid_t, size_t> running;
-  size_t next = 0, done = 0;
-  auto launch = [&](size_t k) {
-    const SweepRunResult& r = result.runs[k];
-    std::vector<std::string> args = {options.executable.string(), "run", spec.scenario};
-    for (const auto& o : overrides[k]) {
-      args.push_back("--set");
-      args.push_back(o.path + "=" + o.value_text);
-    }
-    args.push_back("--out");
-    args.push_back(r.file.string());
-    args.push_back("--quiet");
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const std::string log_path = fs::path(r.file).replace_extension(".log").string();
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-    pid_t pid = 0;
-    const int rc = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (rc != 0) throw std::runtime_error("cannot start " + options.executable.string() + ": " + std::strerror(rc));
-    running[pid] = k;
-  };
-  while (done < pending.size()) {
-    while (running.size() < static_cast<size_t>(std::max(options.jobs, 1)) && next < pending.size()) launch(pending[next++]);
-    int wstatus = 0;
-    const pid_t pid = waitpid(-1, &wstatus, 0);
-    if (pid < 0) throw std::runtime_error("waitpid failed");
-    auto it = running.find(pid);
-    if (it == running.end()) continue;
-    const size_t k = it->second;
-    running.erase(it);
-    ++done;
-    SweepRunResult& r = result.runs[k];
-    r.status = status_from_exit(wstatus);
-    const fs::path log_path = fs::path(r.file).replace_extension(".log");
-    if (r.status == "failed" || r.status == "incomplete") r.message = tail_of(log_path, 8);
-    if (options.progress || r.status == "failed")
-      log << "  [" << done << "/" << pending.size() << "] " << spec.runs[indices[k]].stem << ": " << r.status << "\n"
-          << r.message;
-    write_index(spec, options, indices, result.runs);
-  }
+  std::vector<ChildRun> children;
+  for (size_t k : pending) children.push_back({spec.scenario, overrides[k], result.runs[k].file});
+  size_t done = 0;
+  run_children(options.executable, children, options.jobs,
+               [&](size_t c, const std::string& status, const std::string& message) {
+                 const size_t k = pending[c];
+                 ++done;
+                 SweepRunResult& r = result.runs[k];
+                 r.status = status;
+                 r.message = message;
+                 if (options.progress || r.status == "failed")
+                   log << "  [" << done << "/" << pending.size() << "] " << spec.runs[indices[k]].stem
+                       << ": " << r.status << "\n"
+                       << r.message;
+                 write_index(spec, options, indices, result.runs);
+               });
   write_index(spec, options, indices, result.runs);
   return result;
 }

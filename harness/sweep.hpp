@@ -17,6 +17,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <iosfwd>
 #include <string>
 #include <vector>
@@ -70,6 +71,18 @@ struct SweepResult {
 // the sweep file and the run), then runs those not already complete, `jobs` at a time, and
 // writes <out_dir>/index.json. Messages go to `log`.
 SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::ostream& log);
+
+// Runs in child processes, `executable run SCENARIO --set ... --out FILE --quiet`, `jobs` at a
+// time, each child's output in FILE with the extension .log. on_done(index, status, message) is
+// called as each ends: status complete, exploded, failed or incomplete (from the exit code), and
+// the tail of the log as the message of a failed or incomplete run.
+struct ChildRun {
+  std::string scenario;                      // a file or a catalog name
+  std::vector<config::Override> overrides;
+  std::filesystem::path file;                // the run file to write (its folder is created)
+};
+void run_children(const std::filesystem::path& executable, const std::vector<ChildRun>& runs, int jobs,
+                  const std::function<void(size_t, const std::string&, const std::string&)>& on_done);
 
 // True when `file` holds a finished run (complete or exploded) of exactly this configuration
 // text, made by this build (same git commit).

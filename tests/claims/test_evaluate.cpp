@@ -119,7 +119,11 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
 TEST(Evaluate, CombinesPartVerdicts) {
   auto parts = [](std::initializer_list<Verdict> vs) {
     std::vector<PartResult> out;
-    for (Verdict v : vs) out.push_back(PartResult{"", "", false, v, ""});
+    for (Verdict v : vs) {
+      PartResult p;
+      p.verdict = v;
+      out.push_back(p);
+    }
     return out;
   };
   EXPECT_EQ(combine_verdicts(parts({Verdict::Supported, Verdict::NotTestable})), Verdict::Supported);
@@ -129,6 +133,9 @@ TEST(Evaluate, CombinesPartVerdicts) {
   EXPECT_TRUE(parse_verdict("not testable", v));
   EXPECT_EQ(v, Verdict::NotTestable);
   EXPECT_FALSE(parse_verdict("maybe", v));
+  EXPECT_STREQ(verdict_word(Verdict::Supported, ExperimentKind::Reproduction), "reproduced");
+  EXPECT_STREQ(verdict_word(Verdict::Contradicted, ExperimentKind::Reproduction), "not reproduced");
+  EXPECT_STREQ(verdict_word(Verdict::Contradicted, ExperimentKind::Claim), "contradicted");
 }
 
 }  // namespace

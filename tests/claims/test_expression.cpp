@@ -90,6 +90,19 @@ TEST(Expression, ReductionsSkipTheInitialRowAndNaN) {
   EXPECT_DOUBLE_EQ(eval("final(e) / initial(e) + 1", s), 0.95);
 }
 
+TEST(Expression, PeriodFromUpwardCrossings) {
+  MapScope s;
+  for (int i = 0; i <= 1000; ++i) {
+    const double t = i * 0.01;
+    s.rows["time"].push_back(t);
+    s.rows["x"].push_back(3.0 + std::sin(2.0 * M_PI * t / 0.7));  // period 0.7 s about a mean of 3
+  }
+  EXPECT_NEAR(eval("period(x)", s), 0.7, 1e-3);
+  EXPECT_NEAR(eval("period_from(x, 5)", s), 0.7, 1e-3);
+  s.rows["flat"] = std::vector<double>(1001, 1.0);
+  EXPECT_TRUE(std::isnan(eval("period(flat)", s)));
+}
+
 TEST(Expression, ListsTheNamesItUses) {
   const Expression e("mean_from(kinetic_energy, t0) > 2 * final(height_min) and exploded == 0");
   EXPECT_EQ(e.series_names(), (std::vector<std::string>{"kinetic_energy", "height_min"}));
