@@ -402,7 +402,7 @@ std::vector<Experiment> load_experiments(const fs::path& dir, bool check_configs
   return out;
 }
 
-fs::path reproductions_dir() { return fs::path(PBDBENCH_SOURCE_DIR) / "reproductions"; }
+fs::path reproductions_dir() { return fs::path(PBDBENCH_SOURCE_DIR) / "reproductions" / "experiments"; }
 
 fs::path experiments_dir() {
   if (const char* env = std::getenv("PBDBENCH_CLAIMS"); env != nullptr && *env != '\0') return env;

@@ -160,7 +160,7 @@ std::vector<Experiment> load_experiments(const std::filesystem::path& dir,
 bool claim_id_less(const std::string& a, const std::string& b);
 
 // Where the experiments live: $PBDBENCH_CLAIMS when set, else <source dir>/claims/experiments;
-// the reproductions: <source dir>/reproductions.
+// the reproductions: <source dir>/reproductions/experiments.
 std::filesystem::path experiments_dir();
 std::filesystem::path reproductions_dir();
 

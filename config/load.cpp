@@ -737,7 +737,11 @@ void set_solver_option(SolverOptions& o, const std::string& path, const Value& v
   else if (path == "solver.jacobi_relaxation") o.jacobi_relaxation = number();
   else if (path == "solver.jacobi_averaging") o.jacobi_averaging = flag();
   else if (path == "solver.contact_margin") o.contact_margin = number();
-  else if (path == "solver.pbd.stiffness_correction") o.pbd_stiffness_correction = flag();
+  else if (path == "solver.precision") {
+    if (!parse_precision(std::get<std::string>(value), o.precision))
+      throw std::invalid_argument("solver.precision: unknown precision '" +
+                                  std::get<std::string>(value) + "'");
+  } else if (path == "solver.pbd.stiffness_correction") o.pbd_stiffness_correction = flag();
   else if (path == "solver.pbd.velocity_damping") o.pbd_velocity_damping = number();
   else if (path == "solver.xpbd.residuals") o.xpbd_residuals = flag();
   else if (path == "solver.force.contact_stiffness") o.force_contact_stiffness = number();

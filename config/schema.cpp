@@ -447,6 +447,10 @@ const std::vector<KeySpec>& common_keys() {
                 "jacobi: divide each correction by the particle's constraint count"),
         real("solver.contact_margin", so.contact_margin, "m", at_least(0),
              "contacts closer than this at the predicted positions are built each substep"),
+        text("solver.precision", to_string(so.precision), {"double", "float"},
+             "pbd, xpbd: how the state is stored: double, or float (positions, velocities, "
+             "predictions and multipliers rounded to float32 at every write, the arithmetic "
+             "double; docs/solvers.md); pbd-seed is float by its departure D10"),
         boolean("solver.pbd.stiffness_correction", so.pbd_stiffness_correction,
                 "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"),
         real("solver.pbd.velocity_damping", so.pbd_velocity_damping, "1", within(0, 1),

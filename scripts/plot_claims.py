@@ -1,14 +1,16 @@
 #!/usr/bin/python3
 """Draws the figure of every claim of a claims report (written by `pbdbench claims`).
 
-    plot_claims.py REPORT_DIR          reads REPORT_DIR/claims.json, writes REPORT_DIR/figures/<id>.png
+    plot_claims.py REPORT_DIR          reads REPORT_DIR/claims.json (pbdbench claims) or
+                                       REPORT_DIR/reproductions.json (pbdbench paper), writes
+                                       REPORT_DIR/figures/<id>.png
 
 Each claim's [figure] (claims/experiment.hpp) is one of:
     series   one series of the listed runs (their first trial) against time, one line per run;
              a run that exploded ends with an x at the step where it did
     bars     the listed measures, one bar each, labelled with their values; a NaN measure is
              drawn as an empty bar labelled "NaN"
-The verdict is written in the title. Run files are found relative to REPORT_DIR (claims.json
+The verdict is written in the title (a reproduction's: reproduced / not reproduced). Run files are found relative to REPORT_DIR (claims.json
 stores them so); a missing run file leaves the figure out with a warning, it does not fail. A
 figure newer than claims.json and than the run files it reads is up to date and not redrawn.
 """
@@ -124,12 +126,15 @@ def main(argv):
         print(__doc__, file=sys.stderr)
         return 2
     report_dir = argv[1]
-    with open(os.path.join(report_dir, "claims.json"), encoding="utf-8") as f:
+    json_path = os.path.join(report_dir, "claims.json")
+    if not os.path.exists(json_path):
+        json_path = os.path.join(report_dir, "reproductions.json")
+    with open(json_path, encoding="utf-8") as f:
         report = json.load(f)
     out_dir = os.path.join(report_dir, "figures")
     os.makedirs(out_dir, exist_ok=True)
     written = current = 0
-    json_time = os.path.getmtime(os.path.join(report_dir, "claims.json"))
+    json_time = os.path.getmtime(json_path)
     for claim in report["claims"]:
         kind = claim["figure"]["kind"]
         if kind == "none":

@@ -37,6 +37,17 @@ bool parse_projection_order(const std::string& name, ProjectionOrder& out) {
   return false;
 }
 
+const char* to_string(Precision precision) {
+  return precision == Precision::Float ? "float" : "double";
+}
+
+bool parse_precision(const std::string& name, Precision& out) {
+  if (name == "double") out = Precision::Double;
+  else if (name == "float") out = Precision::Float;
+  else return false;
+  return true;
+}
+
 const std::vector<std::string>& seed_departure_ids() {
   static const std::vector<std::string> ids = {"D1", "D2", "D3", "D4", "D5", "D6",
                                                "D7", "D8", "D9", "D10", "D11"};

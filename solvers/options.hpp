@@ -42,6 +42,17 @@ const char* to_string(ProjectionOrder order);  // "sequential", "reversed", ...
 // Parses the names above; returns false when unknown.
 bool parse_projection_order(const std::string& name, ProjectionOrder& out);
 
+// How pbd and xpbd store their state (solver.precision). The arithmetic is double either way.
+enum class Precision : std::uint8_t {
+  Double,  // the state in double
+  Float,   // positions, velocities, predicted positions and multipliers rounded to float32 at
+           // every write, as a float32 solver stores them (docs/solvers.md, "Precision")
+};
+
+const char* to_string(Precision precision);  // "double", "float"
+// Parses the names above; returns false when unknown.
+bool parse_precision(const std::string& name, Precision& out);
+
 // The ids of the seed listing's departures from Mueller et al. 2007 that solver.seed.fixes may
 // correct, "D1" ... "D11" (docs/seed-departures.md).
 const std::vector<std::string>& seed_departure_ids();
@@ -58,6 +69,9 @@ struct SolverOptions {
   bool jacobi_averaging = true;     // solver.jacobi_averaging: divide by constraint count
   double contact_margin = 0.0;      // solver.contact_margin: m, >= 0; contacts with C < margin
                                     // at the predicted positions are built each substep
+  Precision precision = Precision::Double;  // solver.precision: pbd and xpbd, "double" or
+                                    // "float" (the state rounded to float32 at every write);
+                                    // pbd-seed is float by its D10, the others ignore it
 
   // [solver.pbd]: Mueller et al. 2007.
   bool pbd_stiffness_correction = false;  // solver.pbd.stiffness_correction: k' = 1-(1-k)^(1/n)

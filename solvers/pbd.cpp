@@ -11,6 +11,9 @@
 //   contact projected with k = 1 when C < 0                                    (lines 9-11)
 //   v_i = (p_i - x_i) / h,  x_i = p_i                                          (lines 12-15)
 //   velocity pass: friction and restitution on the touching contacts           (line 16)
+// With solver.precision = "float" the state is stored in float32: x and v at the start of the
+// step, and every write of x, v and p after it, are rounded to float (docs/solvers.md,
+// "Precision"); the arithmetic stays double.
 #include <algorithm>
 #include <limits>
 #include <memory>
@@ -56,14 +59,27 @@ class PbdSolver final : public Solver {
     state.lambda.assign(model.constraints.size(), std::numeric_limits<double>::quiet_NaN());
     Points& x = state.x;
     Points& v = state.v;
+    const bool single = options_.precision == Precision::Float;
+    if (single) {
+      round_to_float(x);
+      round_to_float(v);
+    }
 
     for (int s = 0; s < substeps; ++s) {
       const double t_end = state.time + (s + 1) * h;
       PhaseTimer timer;
       set_kinematic(model, x, v, t_end);
+      if (single)
+        for (const Attachment& a : model.attachments) {
+          round_row_to_float(x, a.particle);
+          round_row_to_float(v, a.particle);
+        }
       apply_gravity(model, h, v);
+      if (single) round_to_float(v);
       damp_velocities(bodies_, model.inv_mass, x, v, options_.pbd_velocity_damping);
+      if (single && options_.pbd_velocity_damping != 0.0) round_to_float(v);
       predict_positions(model, x, v, h, work_.p);
+      if (single) round_to_float(work_.p);
       work_.v_before = v;
       timer.lap(report.time_predict);
 
@@ -74,7 +90,7 @@ class PbdSolver final : public Solver {
                  [&](int j, Stencil& st) { return project(model, j, t_end, st); });
       timer.lap(report.time_project);
 
-      finish_substep(model, t_end, h, work_, x, v);
+      finish_substep(model, t_end, h, work_, x, v, options_.precision);
       timer.lap(report.time_velocity);
     }
     state.time += dt;

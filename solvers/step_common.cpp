@@ -29,6 +29,10 @@ void set_kinematic(const Model& model, Points& x, Points& v, double t) {
   }
 }
 
+void round_to_float(Points& p) {
+  for (Eigen::Index i = 0; i < p.size(); ++i) p.data()[i] = round_to_float(p.data()[i]);
+}
+
 JacobiAccumulator::JacobiAccumulator(int particles) { resize(particles); }
 
 void JacobiAccumulator::resize(int particles) {

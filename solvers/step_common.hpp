@@ -27,6 +27,16 @@ void check_step(const Model& model, const State& state, double dt, int particles
 // v_i = the motion's velocity at t (0 for a static pin).
 void set_kinematic(const Model& model, Points& x, Points& v, double t);
 
+// solver.precision = "float" (pbd, xpbd): a value stored in float32, held in a double. The
+// conversion rounds to nearest, ties to even; a float held in a double converts back exactly.
+inline double round_to_float(double value) {
+  return static_cast<double>(static_cast<float>(value));
+}
+inline void round_row_to_float(Points& p, Eigen::Index row) {
+  for (Eigen::Index k = 0; k < 3; ++k) p(row, k) = round_to_float(p(row, k));
+}
+void round_to_float(Points& p);  // every entry
+
 // Jacobi sweep: corrections are gathered per particle, then applied together:
 //   x_i += omega * (sum of the corrections of particle i) / (n_i if averaging, else 1),
 // n_i = the number of constraints that gave particle i a non-zero correction.

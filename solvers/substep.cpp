@@ -38,12 +38,17 @@ ConstraintEval contact_stencil(const Model& model, size_t k, double t_end, Subst
 }
 
 void finish_substep(const Model& model, double t_end, double h, SubstepScratch& work, Points& x,
-                    Points& v) {
+                    Points& v, Precision precision) {
+  const bool single = precision == Precision::Float;
   for (int i = 0; i < model.particle_count(); ++i) {
-    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) v.row(i) = (work.p.row(i) - x.row(i)) / h;
+    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) {
+      v.row(i) = (work.p.row(i) - x.row(i)) / h;
+      if (single) round_row_to_float(v, i);
+    }
     x.row(i) = work.p.row(i);
   }
-  velocity_pass(model, work.contacts, work.contact_lambda, x, work.v_before, v, t_end, h);
+  velocity_pass(model, work.contacts, work.contact_lambda, x, work.v_before, v, t_end, h,
+                precision);
 }
 
 }  // namespace pbdbench

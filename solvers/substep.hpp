@@ -83,6 +83,8 @@ ConstraintEval contact_stencil(const Model& model, size_t k, double t_end, Subst
 //           multiplier_j += omega dlambda   (omega = jacobi_relaxation).
 // multiplier_j is work.contact_lambda[j - m] for a contact and lambda[j] for a model constraint;
 // with lambda == nullptr (PBD, which keeps no multipliers) model constraints have none.
+// With options.precision = Float every position and multiplier written is rounded to float: the
+// rows of the stencil after each Gauss-Seidel update, all of work.p after a Jacobi sweep.
 // report: skipped counts the Skipped projections, iterations the sweeps, active_contacts the
 // contacts with C < 0 at some projection.
 template <class Project>
@@ -95,6 +97,7 @@ void run_sweeps(const Model& model, const SolverOptions& options, const Ordering
     return lambda != nullptr ? &(*lambda)[static_cast<size_t>(j)] : nullptr;
   };
   const bool jacobi = ordering.jacobi();
+  const bool single = options.precision == Precision::Float;
   for (int sweep = 0; sweep < options.iterations; ++sweep) {
     ordering.sweep(step, substep, sweep, work.sequence);
     work.pending.clear();
@@ -110,15 +113,25 @@ void run_sweeps(const Model& model, const SolverOptions& options, const Ordering
                           st.correction.dx[static_cast<size_t>(i)]);
         if (l != nullptr) work.pending.push_back({j, st.correction.dlambda});
       } else {
-        for (int i = 0; i < st.count; ++i)
-          work.p.row(st.particles[static_cast<size_t>(i)]) +=
-              st.correction.dx[static_cast<size_t>(i)].transpose();
-        if (l != nullptr) *l += st.correction.dlambda;
+        for (int i = 0; i < st.count; ++i) {
+          const int p = st.particles[static_cast<size_t>(i)];
+          work.p.row(p) += st.correction.dx[static_cast<size_t>(i)].transpose();
+          if (single) round_row_to_float(work.p, p);
+        }
+        if (l != nullptr) {
+          *l += st.correction.dlambda;
+          if (single) *l = round_to_float(*l);
+        }
       }
     }
     if (jacobi) {
       work.jacobi.apply(work.p, options.jacobi_relaxation, options.jacobi_averaging);
-      for (const auto& [j, dl] : work.pending) *multiplier(j) += options.jacobi_relaxation * dl;
+      if (single) round_to_float(work.p);
+      for (const auto& [j, dl] : work.pending) {
+        double* l = multiplier(j);
+        *l += options.jacobi_relaxation * dl;
+        if (single) *l = round_to_float(*l);
+      }
     }
     ++report.iterations;
   }
@@ -126,8 +139,10 @@ void run_sweeps(const Model& model, const SolverOptions& options, const Ordering
 }
 
 // v_i = (p_i - x_i) / h for the dynamic particles and x = p; then the velocity pass (friction
-// and restitution) on the substep's contacts, from work.v_before.
+// and restitution) on the substep's contacts, from work.v_before. With Precision::Float each
+// v_i is rounded to float when written (x = p is float already), and so is every velocity the
+// velocity pass changes.
 void finish_substep(const Model& model, double t_end, double h, SubstepScratch& work, Points& x,
-                    Points& v);
+                    Points& v, Precision precision = Precision::Double);
 
 }  // namespace pbdbench

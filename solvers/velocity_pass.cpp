@@ -5,11 +5,14 @@
 #include <cmath>
 #include <numeric>
 
+#include "solvers/step_common.hpp"
+
 namespace pbdbench {
 
 void velocity_pass(const Model& model, const std::vector<Contact>& contacts,
                    const std::vector<double>& lambda, const Points& x, const Points& v_before,
-                   Points& v, double t_end, double h) {
+                   Points& v, double t_end, double h, Precision precision) {
+  const bool single = precision == Precision::Float;
   const double rest_speed = 2.0 * model.gravity.norm() * h;
   for (size_t j = 0; j < contacts.size(); ++j) {
     const Contact& c = contacts[j];
@@ -43,6 +46,10 @@ void velocity_pass(const Model& model, const std::vector<Contact>& contacts,
     dv += (-vn + std::max(-e_eff * vn_before, 0.0)) * n;
     v.row(c.a) += ((wa / W) * dv).transpose();
     if (pair) v.row(c.b) -= ((wb / W) * dv).transpose();
+    if (single) {
+      round_row_to_float(v, c.a);
+      if (pair) round_row_to_float(v, c.b);
+    }
   }
 }
 

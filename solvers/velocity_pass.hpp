@@ -8,6 +8,7 @@
 #include "core/contacts.hpp"
 #include "core/model.hpp"
 #include "core/types.hpp"
+#include "solvers/options.hpp"
 
 namespace pbdbench {
 
@@ -31,9 +32,11 @@ inline constexpr double kTouchingTolerance = 1e-9;
 //      dv_rel += n (-v_n + max(-e_eff v~_n, 0)).
 //   The change is split by inverse mass: v_a += (w_a / W) dv_rel, v_b -= (w_b / W) dv_rel.
 // lambda: (contacts) accumulated multipliers, units kg m; t_end: time at the end of the substep.
+// With Precision::Float (solver.precision) the velocities a contact changes are rounded to float
+// after its change, before the next contact reads them.
 void velocity_pass(const Model& model, const std::vector<Contact>& contacts,
                    const std::vector<double>& lambda, const Points& x, const Points& v_before,
-                   Points& v, double t_end, double h);
+                   Points& v, double t_end, double h, Precision precision = Precision::Double);
 
 // The bodies of a model for velocity damping: the connected components of the graph whose nodes
 // are the dynamic particles (inv_mass > 0) and whose edges join the dynamic particles of each

@@ -18,6 +18,9 @@
 // After the last substep State::lambda is turned into forces: lambda_j / h^2 (N for a distance
 // constraint), so that grad_i C_j lambda_j is the force of constraint j on particle i, as for
 // every solver (core/state.hpp).
+// With solver.precision = "float" the state is stored in float32: x and v at the start of the
+// step, and every write of x, v, x~, the iterate, x_n and lambda after it, are rounded to float
+// (docs/solvers.md, "Precision"); the arithmetic stays double, and so does the final lambda / h^2.
 //
 // Jacobi order: every dlambda_j and correction is computed from the positions at the start of the
 // sweep; then x_i += omega (sum of corrections) / n_i (n_i with jacobi_averaging, else 1) and
@@ -61,6 +64,11 @@ class XpbdSolver final : public Solver {
     report.substeps = substeps;
     Points& x = state.x;
     Points& v = state.v;
+    const bool single = options_.precision == Precision::Float;
+    if (single) {
+      round_to_float(x);
+      round_to_float(v);
+    }
     coefficients_.resize(model.constraints.size());
     for (size_t j = 0; j < model.constraints.size(); ++j)
       coefficients_[j] =
@@ -72,8 +80,15 @@ class XpbdSolver final : public Solver {
       const double t_end = state.time + (s + 1) * h;
       PhaseTimer timer;
       set_kinematic(model, x, v, t_end);
+      if (single)
+        for (const Attachment& a : model.attachments) {
+          round_row_to_float(x, a.particle);
+          round_row_to_float(v, a.particle);
+        }
       apply_gravity(model, h, v);
+      if (single) round_to_float(v);
       predict_positions(model, x, v, h, x_pred_);
+      if (single) round_to_float(x_pred_);
       work_.p = x_pred_;
       work_.v_before = v;
       std::fill(lambda.begin(), lambda.end(), 0.0);
@@ -87,7 +102,7 @@ class XpbdSolver final : public Solver {
       if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, lambda, report);
       timer.lap(report.time_project);
 
-      finish_substep(model, t_end, h, work_, x, v);
+      finish_substep(model, t_end, h, work_, x, v, options_.precision);
       timer.lap(report.time_velocity);
     }
     // State::lambda holds forces (core/state.hpp): the last substep's accumulated multiplier is

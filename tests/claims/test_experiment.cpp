@@ -86,6 +86,20 @@ TEST(Experiment, EveryClaimOfTheIndexHasAnExperimentThatLoads) {
   }
 }
 
+TEST(Experiment, EveryReproductionLoadsAndSaysWhatItReproduces) {
+  const std::vector<Experiment> all = load_experiments(fs::path(PBDBENCH_SOURCE_DIR) / "reproductions" / "experiments");
+  EXPECT_GE(all.size(), 6u);
+  for (const Experiment& e : all) {
+    EXPECT_EQ(e.kind, ExperimentKind::Reproduction) << e.id;
+    EXPECT_FALSE(e.paper.empty()) << e.id;
+    for (const PartSpec& p : e.parts) {
+      EXPECT_FALSE(p.published.empty()) << e.id << ": " << p.says;
+      EXPECT_FALSE(p.source.empty()) << e.id << ": " << p.says;
+      if (p.rule) EXPECT_FALSE(p.ours.empty()) << e.id << ": " << p.says;
+    }
+  }
+}
+
 TEST(Experiment, ReadsEveryPart) {
   const Experiment e = load_experiment(write("S9.9", kGood));
   EXPECT_EQ(e.id, "S9.9");

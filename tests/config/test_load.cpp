@@ -86,6 +86,9 @@ TEST(Load, RunAndSolverOptions) {
   EXPECT_EQ(s.order, ProjectionOrder::Jacobi);
   EXPECT_EQ(s.seed_fixes, (std::vector<std::string>{"D1", "D3"}));
   EXPECT_EQ(s.iterations, SolverOptions{}.iterations);
+  EXPECT_EQ(s.precision, Precision::Double);
+  EXPECT_EQ(solver_options(load_text("[solver]\nprecision = \"float\"\n", "a.toml")).precision,
+            Precision::Float);
 }
 
 TEST(Load, AccessorsRefuseWrongTypesAndMissingKeys) {
@@ -210,6 +213,12 @@ TEST(LoadErrors, NotInChoices) {
   expect_error(e, "bad.toml", 2, "solver.order",
                "solver.order = 'reverse' is not one of sequential, reversed, shuffled, colored, "
                "jacobi, grouped_shuffled, bottom_up (did you mean 'reversed'?)");
+}
+
+TEST(LoadErrors, PrecisionNotInChoices) {
+  const ConfigError e = load_error("[solver]\n\nprecision = \"single\"\n");
+  expect_error(e, "bad.toml", 3, "solver.precision",
+               "solver.precision = 'single' is not one of double, float");
 }
 
 TEST(LoadErrors, StringListNotInChoices) {

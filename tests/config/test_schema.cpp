@@ -115,6 +115,7 @@ TEST(Schema, DefaultsComeFromTheStructs) {
   EXPECT_EQ(std::get<std::int64_t>(def("solver.iterations")), so.iterations);
   EXPECT_EQ(std::get<std::int64_t>(def("solver.substeps")), so.substeps);
   EXPECT_EQ(std::get<std::string>(def("solver.order")), to_string(so.order));
+  EXPECT_EQ(std::get<std::string>(def("solver.precision")), to_string(so.precision));
   EXPECT_EQ(std::get<double>(def("solver.seed.damping")), so.seed_damping);
   EXPECT_EQ(std::get<double>(def("solver.seed.reference_dt")), so.seed_reference_dt);
   EXPECT_EQ(std::get<double>(def("time.dt")), run.dt);
@@ -134,6 +135,7 @@ TEST(Schema, DefaultsComeFromTheStructs) {
   EXPECT_EQ(from.jacobi_relaxation, so.jacobi_relaxation);
   EXPECT_EQ(from.jacobi_averaging, so.jacobi_averaging);
   EXPECT_EQ(from.xpbd_residuals, so.xpbd_residuals);
+  EXPECT_EQ(from.precision, so.precision);
   EXPECT_EQ(from.seed_restitution, so.seed_restitution);
   const RunOptions r = run_options(c);
   EXPECT_EQ(r.dt, run.dt);
@@ -216,6 +218,7 @@ TEST(Schema, SetSolverOptionRefusesOtherPaths) {
   SolverOptions o;
   EXPECT_THROW(detail::set_solver_option(o, "time.dt", 0.1), std::invalid_argument);
   EXPECT_THROW(detail::set_solver_option(o, "solver.order", std::string("sideways")), std::invalid_argument);
+  EXPECT_THROW(detail::set_solver_option(o, "solver.precision", std::string("half")), std::invalid_argument);
 }
 
 TEST(Schema, EditDistance) {

@@ -372,5 +372,54 @@ runs = ["xpbd"]
         self.assertIn("S9.2.toml:5: bogus: unknown key", r.stderr)
 
 
+    def test_experiment_shards_run_in_parallel_processes_and_merge(self):
+        exp = os.path.join(self.dir, "experiments")
+        os.makedirs(exp)
+        self.write("experiments/S9.3.toml", """id = "S9.3"
+section = "9.3"
+claim = "shuffled orders still hold a chain"
+experiment = "a short chain, 6 seeded trials"
+scenario = "hanging_chain"
+[[run]]
+name = "shuffled"
+set = { "time.duration" = 0.1, "solver.order" = "shuffled" }
+trials = 6
+trial_key = "solver.shuffle_seed"
+[[measure]]
+name = "err"
+run = "shuffled"
+value = "final(constraint_error_max)"
+doc = "final error"
+[[part]]
+says = "held"
+rule = "err < 0.1"
+""")
+        runs = os.path.join(self.dir, "runs")
+        args = ["claims", "--experiments", exp, "--runs", runs, "--no-plots"]
+        shards = [subprocess.Popen([BIN, *args, "--shard", f"{i}/3"], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True) for i in range(3)]
+        for p in shards:
+            out, err = p.communicate(timeout=300)
+            self.assertEqual(p.returncode, 0, out + err)
+            self.assertIn("2 runs made, 0 failed", out)
+        for i in range(3):
+            with open(os.path.join(runs, f"index-{i}-of-3.json")) as f:
+                index = json.load(f)
+            self.assertEqual(len(index["runs"]), 6)
+            mine = [r for k, r in enumerate(index["runs"]) if k % 3 == i]
+            self.assertTrue(all(r["status"] == "complete" for r in mine), mine)
+        # The merge: every run file is current, nothing runs again; the index lists all six.
+        r = pbdbench(*args, "--out", os.path.join(self.dir, "report"), "--jobs", "2")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("6 runs, 0 to run", r.stderr)
+        self.assertIn("S9.3    supported", r.stdout)
+        with open(os.path.join(runs, "index.json")) as f:
+            self.assertEqual([x["status"] for x in json.load(f)["runs"]], ["complete"] * 6)
+        script = pbdbench("claims", "--slurm", "3").stdout
+        self.assertIn("#SBATCH --array=0-2", script)
+        self.assertIn('--shard "${SLURM_ARRAY_TASK_ID}/3"', script)
+        self.assertEqual(subprocess.run(["bash", "-n"], input=script, text=True).returncode, 0)
+
+
 if __name__ == "__main__":
     unittest.main()
