@@ -166,6 +166,8 @@ std::string trial_stem(const RunSpec& run, int trials, int trial) {
 
 }  // namespace
 
+std::unique_ptr<Scope> run_scope(const fs::path& run_file) { return std::make_unique<RunScope>(run_file); }
+
 const char* to_string(Verdict verdict) {
   switch (verdict) {
     case Verdict::Supported: return "supported";

@@ -13,6 +13,7 @@
 
 #include <filesystem>
 #include <iosfwd>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -98,6 +99,11 @@ struct PlannedRun {
   bool current = false;
 };
 std::vector<PlannedRun> plan_runs(const Experiment& experiment, const EvaluateOptions& options);
+
+// A run file as the scope of a measure's expression: its series (width-3 ones by component,
+// name.x), and the run scalars of claims/experiment.hpp (exploded, wall_time, ...). Throws
+// std::runtime_error naming the path when the file cannot be read.
+std::unique_ptr<Scope> run_scope(const std::filesystem::path& run_file);
 
 // The claim's verdict from its parts' (see the top of this file).
 Verdict combine_verdicts(const std::vector<PartResult>& parts);

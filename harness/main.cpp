@@ -7,6 +7,7 @@
 //   3  run exploded (run only: the file records where)
 //   4  run interrupted (SIGINT/SIGTERM: the file is marked incomplete)
 //   5  claims --expect: a verdict differs from the record
+//   6  regress: a metric is worse than its baseline beyond tolerance, or a repeated run differs
 // compare: 0 done, 1 a file could not be read or written or the plot failed, 2 bad input (runs
 // of different scenes, a bad --until).
 #include <signal.h>
@@ -27,6 +28,7 @@
 #include <fmt/format.h>
 
 #include "claims/command.hpp"
+#include "regress/command.hpp"
 #include "config/config.hpp"
 #include "harness/compare.hpp"
 #include "harness/converge.hpp"
@@ -43,7 +45,7 @@ using namespace pbdbench;
 namespace {
 
 constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitExploded = 3, kExitInterrupted = 4,
-              kExitVerdictChanged = 5;
+              kExitVerdictChanged = 5, kExitRegression = 6;
 
 std::atomic<bool> g_stop{false};
 
@@ -431,6 +433,23 @@ int main(int argc, char** argv) {
       "paper", "Run the paper reproductions and write paper/: each published number beside ours");
   add_experiment_options(paper_sub, "paper", "reproduction");
 
+  regress::RegressCommand regress_cmd;
+  std::string regress_tier = "quick";
+  bool regress_no_plot = false;
+  auto* regress_sub = app.add_subcommand(
+      "regress", "Run the regression cases and compare their metrics with the stored baselines");
+  regress_sub->add_option("cases", regress_cmd.cases, "Case names (default: the tier's)");
+  regress_sub->add_option("--tier", regress_tier, "quick (the test suite) or full (every case)")
+      ->check(CLI::IsMember({"quick", "full"}));
+  regress_sub->add_flag("--update", regress_cmd.update, "Rewrite the tier's baselines from this build");
+  regress_sub->add_option("--against", regress_cmd.against,
+                          "Compare with another run's output folder (its regress.json) instead of the baselines");
+  regress_sub->add_flag("--repeat", regress_cmd.repeat, "Run every case twice and compare the bits (determinism)");
+  regress_sub->add_option("--out", regress_cmd.out, "Output folder (default results/regress/<tier>)");
+  regress_sub->add_option("--baselines", regress_cmd.baselines, "Baselines file (default regress/baselines_<tier>.toml)");
+  regress_sub->add_flag("--force", regress_cmd.force, "Run again even when current run files exist");
+  regress_sub->add_flag("--no-plot", regress_no_plot, "Do not draw regress.png");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -446,6 +465,17 @@ int main(int argc, char** argv) {
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);
+    if (*regress_sub) {
+      regress_cmd.tier = regress_tier == "full" ? claims::Tier::Full : claims::Tier::Quick;
+      const regress::RegressOutcome r = regress::run_regress(regress_cmd, std::cout, std::cerr);
+      if (r.updated) return kExitOk;
+      if (!regress_no_plot) {
+        const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_regress.py";
+        if (run_python(script, {(r.out / "regress.h5").string(), (r.out / "regress.png").string()}) != 0)
+          std::cerr << "pbdbench: the plot was not drawn (" << script << ")\n";
+      }
+      return r.worse > 0 || r.bit_differences > 0 ? kExitRegression : kExitOk;
+    }
     if (*claims_sub || *paper_sub) {
       claims_cmd.kind = *claims_sub ? claims::ExperimentKind::Claim : claims::ExperimentKind::Reproduction;
       claims_cmd.tier = tier == "quick" ? claims::Tier::Quick : claims::Tier::Full;

@@ -51,7 +51,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
           "relax.frames = " + std::to_string(relax_frames) + " cannot be combined with a shadow "
           "(shadow.solver = '" + shadow_name + "' builds its energy model once)");
   }
-  auto solver = make_solver(solver_opts, model);
+  auto solver = control.make_solver ? control.make_solver(solver_opts, model) : make_solver(solver_opts, model);
   // The shadow: a global solver stepping a copy of the state from the same start.
   std::unique_ptr<Solver> shadow;
   const long shadow_every = static_cast<long>(config.get_int("shadow.every"));

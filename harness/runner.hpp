@@ -12,11 +12,13 @@
 #include <atomic>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 
 #include "config/config.hpp"
 #include "metrics/metrics.hpp"
 #include "runfile/run_file.hpp"
+#include "solvers/solver.hpp"
 
 namespace pbdbench {
 
@@ -34,6 +36,9 @@ struct RunOutcome {
 struct RunControl {
   // Called after each step with (steps completed, steps planned); may be empty.
   std::function<void(long, long)> progress;
+  // When set, builds the run's solver instead of the registry (make_solver): the regression
+  // tests use it to run deliberately broken variants that are never shipped.
+  std::function<std::unique_ptr<Solver>(const SolverOptions&, const Model&)> make_solver;
   // When set and true, the run stops after the current step and is recorded as incomplete.
   const std::atomic<bool>* stop = nullptr;
 };

@@ -420,6 +420,45 @@ rule = "err < 0.1"
         self.assertIn('--shard "${SLURM_ARRAY_TASK_ID}/3"', script)
         self.assertEqual(subprocess.run(["bash", "-n"], input=script, text=True).returncode, 0)
 
+    def test_regress_update_compare_against_and_a_worse_metric(self):
+        base = os.path.join(self.dir, "base.toml")
+        a = os.path.join(self.dir, "a")
+        args = ["regress", "spring_xpbd", "chain_pbd", "--baselines", base, "--no-plot"]
+        r = pbdbench(*args, "--update", "--out", a)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("2 cases measured; baselines written", r.stdout)
+        r = pbdbench(*args, "--out", a, "--repeat")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("0 worse", r.stdout)
+        with open(os.path.join(a, "regress.md")) as f:
+            self.assertIn("run twice, the same bits", f.read())
+        # A baseline claiming a smaller final constraint error: now is worse, named, exit 6.
+        with open(base) as f:
+            text = f.read()
+        lines = text.split("\n")
+        start = lines.index("[chain_pbd]")
+        for k in range(start, len(lines)):
+            if lines[k].startswith("constraint_error_final = "):
+                value = float(lines[k].split("=")[1])
+                lines[k] = f"constraint_error_final = {value / 2!r}"
+                break
+        self.write("worse.toml", "\n".join(lines))
+        r = pbdbench("regress", "spring_xpbd", "chain_pbd", "--baselines", os.path.join(self.dir, "worse.toml"),
+                     "--out", os.path.join(self.dir, "b"))
+        self.assertEqual(r.returncode, 6, r.stdout + r.stderr)
+        self.assertRegex(r.stdout, r"chain_pbd +constraint_error_final .* worse")
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "b", "regress.png")))
+        with h5py.File(os.path.join(self.dir, "b", "regress.h5")) as f:
+            self.assertIn(b"worse", list(f["verdict"][()]))
+        # Two result sets against each other: the same build, the same numbers.
+        r = pbdbench("regress", "spring_xpbd", "chain_pbd", "--against", a, "--out", os.path.join(self.dir, "c"),
+                     "--no-plot")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("0 better, 0 worse", r.stdout)
+        r = pbdbench("regress", "no_such_case")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("no case named 'no_such_case'", r.stderr)
+
 
 if __name__ == "__main__":
     unittest.main()
