@@ -83,6 +83,20 @@ std::string verdict_badge(Verdict v) { return fmt::format("**{}**", to_string(v)
 
 std::string part_id(const ClaimResult& c, size_t k) { return fmt::format("{}.{}", c.id, k + 1); }
 
+// The table of an experiment's measures: name, value, units, what it is, how it was taken.
+void measures_table(std::ostringstream& md, const ClaimResult& c) {
+  if (c.measures.empty()) return;
+  md << "| measure | value | units | what it is | taken as |\n|---|---|---|---|---|\n";
+  for (const MeasureResult& m : c.measures) {
+    std::string how = "`" + m.expression + "`";
+    if (!m.run.empty())
+      how += m.trials.size() > 1 ? fmt::format(" of run {}, {} over {} trials", m.run, m.over_trials, m.trials.size())
+                                 : fmt::format(" of run {}", m.run);
+    md << fmt::format("| {} | {} | {} | {} | {} |\n", m.name, number(m.value), m.units, cell(m.doc), cell(how));
+  }
+  md << "\n";
+}
+
 }  // namespace
 
 
@@ -144,17 +158,7 @@ std::string reproduction_markdown(const std::vector<ClaimResult>& items, const R
                         cell(p.source), cell(ours), p.rule.empty() ? "" : "`" + cell(p.rule) + "`", cell(verdict));
     }
     md << "\n";
-    if (!c.measures.empty()) {
-      md << "| measure | value | units | what it is | taken as |\n|---|---|---|---|---|\n";
-      for (const MeasureResult& m : c.measures) {
-        std::string how = "`" + m.expression + "`";
-        if (!m.run.empty())
-          how += m.trials.size() > 1 ? fmt::format(" of run {}, {} over {} trials", m.run, m.over_trials, m.trials.size())
-                                     : fmt::format(" of run {}", m.run);
-        md << fmt::format("| {} | {} | {} | {} | {} |\n", m.name, number(m.value), m.units, cell(m.doc), cell(how));
-      }
-      md << "\n";
-    }
+    measures_table(md, c);
   }
   return md.str();
 }
@@ -237,17 +241,7 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
                         p.rule.empty() ? "" : "`" + cell(p.rule) + "`", cell(verdict));
     }
     md << "\n";
-    if (!c.measures.empty()) {
-      md << "| measure | value | units | what it is | taken as |\n|---|---|---|---|---|\n";
-      for (const MeasureResult& m : c.measures) {
-        std::string how = "`" + m.expression + "`";
-        if (!m.run.empty())
-          how += m.trials.size() > 1 ? fmt::format(" of run {}, {} over {} trials", m.run, m.over_trials, m.trials.size())
-                                     : fmt::format(" of run {}", m.run);
-        md << fmt::format("| {} | {} | {} | {} | {} |\n", m.name, number(m.value), m.units, cell(m.doc), cell(how));
-      }
-      md << "\n";
-    }
+    measures_table(md, c);
     if (!c.runs.empty()) {
       md << "| run | trials | complete | exploded | failed |\n|---|---|---|---|---|\n";
       for (const RunResult& r : c.runs)
