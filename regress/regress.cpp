@@ -13,7 +13,7 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
-#include "claims/evaluate.hpp"
+#include "experiments/evaluate.hpp"
 #include "config/toml_text.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
@@ -23,7 +23,7 @@
 namespace pbdbench::regress {
 
 namespace fs = std::filesystem;
-using claims::ExperimentError;
+using experiments::ExperimentError;
 
 namespace {
 
@@ -109,8 +109,8 @@ Registry load_registry(const fs::path& file) {
   Registry reg;
   reg.file = file;
   check_keys(root, file, "", {"metric", "case"});
-  const std::vector<std::string> series = claims::run_series_names();
-  const std::vector<std::string>& scalars = claims::run_scalar_names();
+  const std::vector<std::string> series = experiments::run_series_names();
+  const std::vector<std::string>& scalars = experiments::run_scalar_names();
   auto is_series = [&](const std::string& s) {
     if (std::find(series.begin(), series.end(), s) != series.end()) return true;
     for (const GroupSeriesSpec& g : group_series_table())
@@ -125,7 +125,7 @@ Registry load_registry(const fs::path& file) {
       MetricSpec m;
       m.name = str(*t, "name", file, "metric.", true);
       try {
-        m.value = claims::Expression(str(*t, "value", file, "metric.", true));
+        m.value = experiments::Expression(str(*t, "value", file, "metric.", true));
       } catch (const std::invalid_argument& e) {
         fail(file, line_of(*t), "metric.value", e.what());
       }
@@ -236,7 +236,7 @@ CaseResult measure_case(const Registry& reg, const CaseSpec& c, const fs::path& 
   const config::Config cfg = config::load(c.scenario, c.set);
   if (force || control.make_solver || !run_is_current(r.file, cfg.to_toml())) run_config(cfg, r.file, control);
   r.status = read_run_file(r.file, false).status();
-  const std::unique_ptr<claims::Scope> scope = claims::run_scope(r.file);
+  const std::unique_ptr<experiments::Scope> scope = experiments::run_scope(r.file);
   for (const std::string& name : c.metrics) r.values[name] = reg.metric(name)->value.evaluate(*scope);
   r.hash = state_hash(r.file);
   return r;
@@ -391,11 +391,11 @@ std::string toml_number(double v) {
 }
 }  // namespace
 
-std::string baseline_toml(const std::vector<CaseResult>& results, claims::Tier tier) {
+std::string baseline_toml(const std::vector<CaseResult>& results, experiments::Tier tier) {
   const BuildInfo& b = build_info();
   std::ostringstream out;
-  out << "# Baselines of the regression, " << claims::to_string(tier) << " tier: every case's metrics as\n"
-      << "# measured by the build below, written by `pbdbench regress --tier " << claims::to_string(tier)
+  out << "# Baselines of the regression, " << experiments::to_string(tier) << " tier: every case's metrics as\n"
+      << "# measured by the build below, written by `pbdbench regress --tier " << experiments::to_string(tier)
       << " --update`.\n# The tolerances and directions are in regress/cases.toml; the policy on changing a\n"
       << "# baseline is in docs/regress.md. Review a change here as a diff: each line is one number.\n\n"
       << "[build]\n"

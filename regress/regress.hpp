@@ -24,8 +24,8 @@
 #include <string>
 #include <vector>
 
-#include "claims/experiment.hpp"
-#include "claims/expression.hpp"
+#include "experiments/experiment.hpp"
+#include "experiments/expression.hpp"
 #include "config/config.hpp"
 #include "harness/runner.hpp"
 
@@ -35,7 +35,7 @@ enum class Worse { Higher, Lower, Either };  // which change is a regression
 
 struct MetricSpec {
   std::string name;
-  claims::Expression value{"0"};  // over a run file (claims/expression.hpp)
+  experiments::Expression value{"0"};  // over a run file (experiments/expression.hpp)
   std::string units;
   std::string doc;
   Worse worse = Worse::Higher;
@@ -61,7 +61,7 @@ struct Registry {
 };
 
 // Reads and checks regress/cases.toml (unknown keys, unknown metrics or series, configurations
-// the schema refuses): errors name the file, the line and the key (claims::ExperimentError).
+// the schema refuses): errors name the file, the line and the key (experiments::ExperimentError).
 Registry load_registry(const std::filesystem::path& file);
 std::filesystem::path registry_file();  // <source dir>/regress/cases.toml
 
@@ -90,7 +90,7 @@ struct Baseline {
   std::string commit, compiler, build_type, cxx_flags;          // the build that made it
 };
 Baseline read_baseline(const std::filesystem::path& file);  // TOML (baselines) or JSON (regress.json)
-std::string baseline_toml(const std::vector<CaseResult>& results, claims::Tier tier);
+std::string baseline_toml(const std::vector<CaseResult>& results, experiments::Tier tier);
 
 enum class Verdict { Same, Better, Worse, Ratio, New };
 const char* to_string(Verdict verdict);  // "same", "better", "worse", "ratio", "new"

@@ -5,7 +5,7 @@
                                        REPORT_DIR/reproductions.json (pbdbench paper), writes
                                        REPORT_DIR/figures/<id>.png
 
-Each claim's [figure] (claims/experiment.hpp) is one of:
+Each claim's [figure] (experiments/experiment.hpp) is one of:
     series   one series of the listed runs (their first trial) against time, one line per run;
              a run that exploded ends with an x at the step where it did
     bars     the listed measures, one bar each, labelled with their values; a NaN measure is

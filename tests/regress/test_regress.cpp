@@ -216,7 +216,7 @@ TEST(Regress, BaselinesRoundTripAndTheHashIsDeterministic) {
   const CaseResult b = measure_case(reg, c, dir / "b", true);
   EXPECT_EQ(a.hash, b.hash);  // the same build, the same bits
   EXPECT_EQ(a.hash.size(), 16u);
-  std::ofstream(dir / "base.toml") << baseline_toml({a}, claims::Tier::Quick);
+  std::ofstream(dir / "base.toml") << baseline_toml({a}, experiments::Tier::Quick);
   const Baseline base = read_baseline(dir / "base.toml");
   EXPECT_EQ(base.hashes.at(c.name), a.hash);
   for (const auto& [name, v] : a.values) {

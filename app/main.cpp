@@ -27,8 +27,8 @@
 
 #include <fmt/format.h>
 
-#include "claims/command.hpp"
-#include "regress/command.hpp"
+#include "app/claims_command.hpp"
+#include "app/regress_command.hpp"
 #include "config/config.hpp"
 #include "harness/compare.hpp"
 #include "harness/converge.hpp"
@@ -301,13 +301,13 @@ int cmd_converge(const std::string& scenario, const std::vector<std::string>& se
 }
 
 // The claims' experiments, the report, its figures and the verdict records.
-int cmd_claims(claims::ClaimsCommand command, bool plots, int argc, char** argv) {
+int cmd_claims(experiments::ClaimsCommand command, bool plots, int argc, char** argv) {
   for (int i = 0; i < argc; ++i) {
     std::string a = argv[i];
     if (i == 0) a = fs::path(a).filename().string();
     command.command_line += (i ? " " : "") + a;
   }
-  const claims::ClaimsOutcome outcome = claims::run_claims(command, std::cout, std::cerr);
+  const experiments::ClaimsOutcome outcome = experiments::run_claims(command, std::cout, std::cerr);
   if (outcome.out.empty()) return outcome.failed_runs > 0 ? kExitFailure : kExitOk;  // a shard
   if (plots) {
     const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_claims.py";  // both reports
@@ -403,7 +403,7 @@ int main(int argc, char** argv) {
 
   // claims and paper: the same engine on two folders of experiments (claims/experiments,
   // reproductions/), with the same options.
-  claims::ClaimsCommand claims_cmd;
+  experiments::ClaimsCommand claims_cmd;
   std::string tier = "full", experiment_shard;
   bool no_plots = false;
   int slurm = 0;
@@ -466,7 +466,7 @@ int main(int argc, char** argv) {
     if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);
     if (*regress_sub) {
-      regress_cmd.tier = regress_tier == "full" ? claims::Tier::Full : claims::Tier::Quick;
+      regress_cmd.tier = regress_tier == "full" ? experiments::Tier::Full : experiments::Tier::Quick;
       const regress::RegressOutcome r = regress::run_regress(regress_cmd, std::cout, std::cerr);
       if (r.updated) return kExitOk;
       if (!regress_no_plot) {
@@ -477,12 +477,12 @@ int main(int argc, char** argv) {
       return r.worse > 0 || r.bit_differences > 0 ? kExitRegression : kExitOk;
     }
     if (*claims_sub || *paper_sub) {
-      claims_cmd.kind = *claims_sub ? claims::ExperimentKind::Claim : claims::ExperimentKind::Reproduction;
-      claims_cmd.tier = tier == "quick" ? claims::Tier::Quick : claims::Tier::Full;
+      claims_cmd.kind = *claims_sub ? experiments::ExperimentKind::Claim : experiments::ExperimentKind::Reproduction;
+      claims_cmd.tier = tier == "quick" ? experiments::Tier::Quick : experiments::Tier::Full;
       claims_cmd.executable = self_executable();
       if (!experiment_shard.empty()) parse_shard(experiment_shard, claims_cmd.shard_index, claims_cmd.shard_count);
       if (slurm > 0) {
-        std::cout << claims::slurm_script(claims_cmd, slurm);
+        std::cout << experiments::slurm_script(claims_cmd, slurm);
         return kExitOk;
       }
       return cmd_claims(claims_cmd, !no_plots, argc, argv);
@@ -501,7 +501,7 @@ int main(int argc, char** argv) {
   } catch (const config::ConfigError& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
-  } catch (const claims::ExperimentError& e) {
+  } catch (const experiments::ExperimentError& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const CompareInputError& e) {

@@ -1,4 +1,4 @@
-#include "claims/expression.hpp"
+#include "experiments/expression.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -6,7 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -389,4 +389,4 @@ std::vector<std::string> Expression::nan_names(const Scope& scope) const {
   return out;
 }
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -1,13 +1,13 @@
-// claims/expression: parsing, precedence, NaN handling, reductions and the errors.
+// experiments/expression: parsing, precedence, NaN handling, reductions and the errors.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 #include <map>
 
-#include "claims/expression.hpp"
+#include "experiments/expression.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -135,4 +135,4 @@ TEST(Expression, UnknownNamesAreErrorsWhenEvaluated) {
 }
 
 }  // namespace
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -47,7 +47,7 @@
 //   log = true
 //   ylabel = "kinetic energy (J)"
 //
-// Expressions are claims/expression.hpp's. Every error names the file, the line and the key.
+// Expressions are experiments/expression.hpp's. Every error names the file, the line and the key.
 #pragma once
 
 #include <filesystem>
@@ -56,10 +56,10 @@
 #include <string>
 #include <vector>
 
-#include "claims/expression.hpp"
+#include "experiments/expression.hpp"
 #include "config/config.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 enum class Tier { Quick, Full };
 const char* to_string(Tier tier);  // "quick", "full"
@@ -175,4 +175,4 @@ std::filesystem::path reproductions_dir();
 std::vector<std::string> run_series_names();
 const std::vector<std::string>& run_scalar_names();
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

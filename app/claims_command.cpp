@@ -1,4 +1,4 @@
-#include "claims/command.hpp"
+#include "app/claims_command.hpp"
 
 #include <algorithm>
 #include <fstream>
@@ -8,12 +8,12 @@
 
 #include <fmt/format.h>
 
-#include "claims/evaluate.hpp"
-#include "claims/report.hpp"
+#include "experiments/evaluate.hpp"
+#include "experiments/report.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/run_file.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 namespace fs = std::filesystem;
 
@@ -195,4 +195,4 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
   return outcome;
 }
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -1,14 +1,14 @@
-// claims/evaluate and claims/report: a small experiment run end to end, its verdicts, the reuse of
+// experiments/evaluate and experiments/report: a small experiment run end to end, its verdicts, the reuse of
 // current run files, the records and the report.
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include "claims/evaluate.hpp"
-#include "claims/report.hpp"
+#include "experiments/evaluate.hpp"
+#include "experiments/report.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 namespace {
 
 namespace fs = std::filesystem;
@@ -139,4 +139,4 @@ TEST(Evaluate, CombinesPartVerdicts) {
 }
 
 }  // namespace
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

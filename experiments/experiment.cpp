@@ -1,4 +1,4 @@
-#include "claims/experiment.hpp"
+#include "experiments/experiment.hpp"
 
 #include <algorithm>
 #include <cstdlib>
@@ -10,7 +10,7 @@
 #include "config/toml_text.hpp"
 #include "runfile/series.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 namespace fs = std::filesystem;
 
@@ -409,4 +409,4 @@ fs::path experiments_dir() {
   return fs::path(PBDBENCH_SOURCE_DIR) / "claims" / "experiments";
 }
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

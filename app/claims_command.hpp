@@ -21,9 +21,9 @@
 #include <string>
 #include <vector>
 
-#include "claims/experiment.hpp"
+#include "experiments/experiment.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 struct ClaimsCommand {
   ExperimentKind kind = ExperimentKind::Claim;  // claims, or the paper's reproductions
@@ -55,4 +55,4 @@ ClaimsOutcome run_claims(const ClaimsCommand& command, std::ostream& out, std::o
 // `shards` array tasks, then the report in a job that depends on the array.
 std::string slurm_script(const ClaimsCommand& command, int shards);
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -18,13 +18,13 @@
 #include <string>
 #include <vector>
 
-#include "claims/experiment.hpp"
+#include "experiments/experiment.hpp"
 #include "harness/runner.hpp"
 
 namespace pbdbench::regress {
 
 struct RegressCommand {
-  claims::Tier tier = claims::Tier::Quick;
+  experiments::Tier tier = experiments::Tier::Quick;
   std::vector<std::string> cases;   // only these (default: the tier's)
   std::filesystem::path registry;   // default: regress/cases.toml
   std::filesystem::path baselines;  // default: regress/baselines_<tier>.toml
@@ -44,7 +44,7 @@ struct RegressOutcome {
   bool updated = false;
 };
 
-// Throws claims::ExperimentError for a bad registry or an unknown case, std::runtime_error for
+// Throws experiments::ExperimentError for a bad registry or an unknown case, std::runtime_error for
 // a missing or unreadable baseline.
 RegressOutcome run_regress(const RegressCommand& command, std::ostream& out, std::ostream& log);
 

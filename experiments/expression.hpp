@@ -36,7 +36,7 @@
 #include <string>
 #include <vector>
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 // What a name stands for when an expression is evaluated.
 class Scope {
@@ -80,4 +80,4 @@ class Expression {
   std::shared_ptr<const Node> root_;
 };
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -1,4 +1,4 @@
-#include "regress/command.hpp"
+#include "app/regress_command.hpp"
 
 #include <algorithm>
 #include <fstream>
@@ -24,16 +24,16 @@ void write_text(const fs::path& path, const std::string& text) {
 
 RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::ostream& log) {
   const fs::path source(PBDBENCH_SOURCE_DIR);
-  const std::string tier = claims::to_string(cmd.tier);
+  const std::string tier = experiments::to_string(cmd.tier);
   const Registry reg = load_registry(cmd.registry.empty() ? registry_file() : cmd.registry);
   std::vector<const CaseSpec*> cases;
   for (const CaseSpec& c : reg.cases)
-    if (cmd.cases.empty() ? (cmd.tier == claims::Tier::Full || c.quick)
+    if (cmd.cases.empty() ? (cmd.tier == experiments::Tier::Full || c.quick)
                           : std::find(cmd.cases.begin(), cmd.cases.end(), c.name) != cmd.cases.end())
       cases.push_back(&c);
   for (const std::string& name : cmd.cases)
     if (std::none_of(reg.cases.begin(), reg.cases.end(), [&](const CaseSpec& c) { return c.name == name; }))
-      throw claims::ExperimentError(fmt::format("{}: no case named '{}'", reg.file.string(), name));
+      throw experiments::ExperimentError(fmt::format("{}: no case named '{}'", reg.file.string(), name));
 
   RegressOutcome outcome;
   outcome.out = !cmd.out.empty() ? cmd.out : source / "results" / "regress" / tier;

@@ -1,4 +1,4 @@
-#include "claims/report.hpp"
+#include "experiments/report.hpp"
 
 #include <cmath>
 #include <fstream>
@@ -12,7 +12,7 @@
 
 #include "runfile/build_info.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 namespace fs = std::filesystem;
 
@@ -354,4 +354,4 @@ std::vector<std::string> verdict_differences(const std::vector<ClaimResult>& cla
   return out;
 }
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -1,4 +1,4 @@
-#include "claims/evaluate.hpp"
+#include "experiments/evaluate.hpp"
 
 #include <H5Cpp.h>
 
@@ -15,7 +15,7 @@
 #include "harness/sweep.hpp"
 #include "runfile/run_file.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 namespace fs = std::filesystem;
 
@@ -324,4 +324,4 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
   return result;
 }
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -1,4 +1,4 @@
-// claims/experiment: the catalog of experiments loads, and bad files are refused naming the file,
+// experiments/experiment: the catalog of experiments loads, and bad files are refused naming the file,
 // the line and the key.
 #include <gtest/gtest.h>
 
@@ -6,9 +6,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "claims/experiment.hpp"
+#include "experiments/experiment.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 namespace {
 
 namespace fs = std::filesystem;
@@ -162,4 +162,4 @@ TEST(Experiment, ClaimIdsSortAsTheIndex) {
 }
 
 }  // namespace
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -17,9 +17,9 @@
 #include <string>
 #include <vector>
 
-#include "claims/experiment.hpp"
+#include "experiments/experiment.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 enum class Verdict { Supported, Contradicted, NotTestable };
 const char* to_string(Verdict verdict);  // "supported", "contradicted", "not testable"
@@ -101,11 +101,11 @@ struct PlannedRun {
 std::vector<PlannedRun> plan_runs(const Experiment& experiment, const EvaluateOptions& options);
 
 // A run file as the scope of a measure's expression: its series (width-3 ones by component,
-// name.x), and the run scalars of claims/experiment.hpp (exploded, wall_time, ...). Throws
+// name.x), and the run scalars of experiments/experiment.hpp (exploded, wall_time, ...). Throws
 // std::runtime_error naming the path when the file cannot be read.
 std::unique_ptr<Scope> run_scope(const std::filesystem::path& run_file);
 
 // The claim's verdict from its parts' (see the top of this file).
 Verdict combine_verdicts(const std::vector<PartResult>& parts);
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments

@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "claims/evaluate.hpp"
+#include "experiments/evaluate.hpp"
 
-namespace pbdbench::claims {
+namespace pbdbench::experiments {
 
 struct ReportContext {
   Tier tier = Tier::Full;
@@ -45,4 +45,4 @@ std::string verdicts_toml(const std::vector<ClaimResult>& claims, Tier tier);
 std::vector<std::string> verdict_differences(const std::vector<ClaimResult>& claims,
                                              const std::filesystem::path& record);
 
-}  // namespace pbdbench::claims
+}  // namespace pbdbench::experiments
