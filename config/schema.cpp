@@ -448,9 +448,13 @@ const std::vector<KeySpec>& common_keys() {
         real("solver.contact_margin", so.contact_margin, "m", at_least(0),
              "contacts closer than this at the predicted positions are built each substep"),
         text("solver.precision", to_string(so.precision), {"double", "float"},
-             "pbd, xpbd: how the state is stored: double, or float (positions, velocities, "
-             "predictions and multipliers rounded to float32 at every write, the arithmetic "
-             "double; docs/solvers.md); pbd-seed is float by its departure D10"),
+             "pbd, xpbd: the precision they compute in: double, or float (the projections in "
+             "float32, positions, velocities, predictions and multipliers stored in float32; "
+             "docs/solvers.md); pbd-seed is float by its departure D10"),
+        integer("solver.threads", so.threads, within(0, 1024),
+                "threads of the projection sweeps (pbd, xpbd; the results are the same bits at "
+                "any count) and of the references' sparse factorisations; 0: the cores the run "
+                "may use (one under sweep --jobs > 1)"),
         boolean("solver.pbd.stiffness_correction", so.pbd_stiffness_correction,
                 "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"),
         real("solver.pbd.velocity_damping", so.pbd_velocity_damping, "1", within(0, 1),

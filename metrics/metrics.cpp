@@ -78,10 +78,13 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   // Constraint error, overall and per group. The FEM kinds are left out: they are energy terms
   // (their C is not 0 at rest), not targets.
   s.groups.assign(model.group_names.size(), GroupError{});
+  std::vector<double> values;  // C of every constraint (core/constraint_functions.hpp)
+  constraint_values(model, x, values);
   double sum_sq = 0.0;
-  for (const Constraint& c : model.constraints) {
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
+    const Constraint& c = model.constraints[j];
     if (is_fem_kind(c.kind)) continue;
-    const double err = normalized_error(c, eval_constraint(c, x).C);
+    const double err = normalized_error(c, values[j]);
     GroupError& g = s.groups[c.group];
     g.max = std::max(g.max, err);
     g.rms += err * err;
@@ -124,11 +127,12 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     s.linear_momentum += m * vi;
     s.angular_momentum += m * xi.cross(vi);
   }
-  for (const Constraint& c : model.constraints) {
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
     // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it below
     // (adding both would count each element twice).
+    const Constraint& c = model.constraints[j];
     if (c.compliance > 0.0 && !is_fem_kind(c.kind)) {
-      const double C = eval_constraint(c, x).C;
+      const double C = values[j];
       s.elastic_energy += C * C / (2.0 * c.compliance);
     }
   }

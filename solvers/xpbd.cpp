@@ -18,9 +18,12 @@
 // After the last substep State::lambda is turned into forces: lambda_j / h^2 (N for a distance
 // constraint), so that grad_i C_j lambda_j is the force of constraint j on particle i, as for
 // every solver (core/state.hpp).
-// With solver.precision = "float" the state is stored in float32: x and v at the start of the
-// step, and every write of x, v, x~, the iterate, x_n and lambda after it, are rounded to float
-// (docs/solvers.md, "Precision"); the arithmetic stays double, and so does the final lambda / h^2.
+// The sweeps run compiled (solvers/compiled_projection.hpp) in the run's precision: with
+// solver.precision = "float" the projections compute in float32 and x, v, x~ and the multipliers
+// are stored as float32 (docs/solvers.md, "Precision"); the residuals and the final lambda / h^2
+// are computed in double. The per-item path (ProjectionPath::PerItem: solvers/kernels.hpp in
+// double, the state rounded to float at every write) is the reference the compiled path is tested
+// against.
 //
 // Jacobi order: every dlambda_j and correction is computed from the positions at the start of the
 // sweep; then x_i += omega (sum of corrections) / n_i (n_i with jacobi_averaging, else 1) and
@@ -36,6 +39,7 @@
 #include <vector>
 
 #include "core/contacts.hpp"
+#include "solvers/compiled_projection.hpp"
 #include "solvers/kernels.hpp"
 #include "solvers/ordering.hpp"
 #include "solvers/step_common.hpp"
@@ -47,12 +51,16 @@ namespace {
 
 class XpbdSolver final : public Solver {
  public:
-  XpbdSolver(const SolverOptions& options, const Model& model)
+  XpbdSolver(const SolverOptions& options, const Model& model, ProjectionPath path)
       : options_(options),
         particles_(model.particle_count()),
         constraints_(model.constraint_count()),
         ordering_(model, options),
-        work_(model.particle_count()) {}
+        work_(model.particle_count()) {
+    if (path != ProjectionPath::PerItem)
+      compiled_ = compile_projection(model, options, ProjectionRule::Xpbd, ordering_,
+                                     path == ProjectionPath::CompiledOneByOne);
+  }
 
   std::string name() const override { return "xpbd"; }
 
@@ -85,10 +93,8 @@ class XpbdSolver final : public Solver {
           round_row_to_float(x, a.particle);
           round_row_to_float(v, a.particle);
         }
-      apply_gravity(model, h, v);
-      if (single) round_to_float(v);
-      predict_positions(model, x, v, h, x_pred_);
-      if (single) round_to_float(x_pred_);
+      apply_gravity(model, h, v, options_.precision);
+      predict_positions(model, x, v, h, x_pred_, options_.precision);
       work_.p = x_pred_;
       work_.v_before = v;
       std::fill(lambda.begin(), lambda.end(), 0.0);
@@ -97,10 +103,20 @@ class XpbdSolver final : public Solver {
       find_substep_contacts(model, t_end, options_.contact_margin, x, ordering_, work_, report);
       timer.lap(report.time_contacts);
 
-      run_sweeps(model, options_, ordering_, state.step, s, &lambda, work_, report,
-                 [&](int j, Stencil& st) { return project(model, j, t_end, x, lambda, st); });
-      if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, lambda, report);
+      if (compiled_) {
+        compiled_->set_substep(model, h);
+        compiled_->begin_substep(model, work_.p, x, work_.contacts, t_end, ordering_);
+        compiled_->sweeps(options_.iterations, state.step, s, ordering_, report);
+        compiled_->end_substep(work_.p, s == substeps - 1 ? &lambda : nullptr, work_.contact_lambda,
+                               work_.contact_active);
+        for (char a : work_.contact_active) report.active_contacts += a;
+      } else {
+        run_sweeps(model, options_, ordering_, state.step, s, &lambda, work_, report,
+                   [&](int j, Stencil& st) { return project(model, j, t_end, x, lambda, st); });
+      }
       timer.lap(report.time_project);
+      if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, lambda, report);
+      timer.lap(report.time_residual);
 
       finish_substep(model, t_end, h, work_, x, v, options_.precision);
       timer.lap(report.time_velocity);
@@ -149,14 +165,18 @@ class XpbdSolver final : public Solver {
       if (w > 0.0) g.row(i) = (p.row(i) - x_pred_.row(i)) / w;
     }
     double h2 = 0.0;
-    for (size_t j = 0; j < model.constraints.size(); ++j) {
-      const Constraint& c = model.constraints[j];
-      const ConstraintEval e = eval_constraint(model, c, p);
-      for (int i = 0; i < arity(c.kind); ++i)
-        g.row(c.particles[static_cast<size_t>(i)]) -=
-            lambda[j] * e.grad[static_cast<size_t>(i)].transpose();
-      const double hj = e.C + coefficients_[j].alpha_tilde * lambda[j];
-      h2 += hj * hj;
+    if (compiled_) {
+      h2 = compiled_->constraint_residuals(model, p, g);
+    } else {
+      for (size_t j = 0; j < model.constraints.size(); ++j) {
+        const Constraint& c = model.constraints[j];
+        const ConstraintEval e = eval_constraint(model, c, p);
+        for (int i = 0; i < arity(c.kind); ++i)
+          g.row(c.particles[static_cast<size_t>(i)]) -=
+              lambda[j] * e.grad[static_cast<size_t>(i)].transpose();
+        const double hj = e.C + coefficients_[j].alpha_tilde * lambda[j];
+        h2 += hj * hj;
+      }
     }
     for (size_t k = 0; k < work_.contacts.size(); ++k) {
       const double lambda_k = work_.contact_lambda[k];
@@ -183,11 +203,13 @@ class XpbdSolver final : public Solver {
   // Scratch, kept between steps to avoid reallocation.
   Points x_pred_;        // (n x 3) m, x~, the predicted positions
   SubstepScratch work_;  // work_.p is the iterate x of Algorithm 1
+  std::unique_ptr<CompiledProjection> compiled_;  // null on the per-item path
 };
 
 }  // namespace
 
-std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model) {
+std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model,
+                                         ProjectionPath path) {
   // FEM elements enter xpbd only through their constraint form (the FEM kinds, Macklin and
   // Mueller 2021), which the stable neo-Hookean material has and the others do not.
   for (size_t k = 0; k < model.elements.size(); ++k)
@@ -196,7 +218,7 @@ std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Mod
           "xpbd cannot simulate element " + std::to_string(k) + ": its material " +
           to_string(model.elements[k].material) +
           " has no XPBD constraint form (only stable_neo_hookean has); use a reference solver");
-  return std::make_unique<XpbdSolver>(options, model);
+  return std::make_unique<XpbdSolver>(options, model, path);
 }
 
 }  // namespace pbdbench
