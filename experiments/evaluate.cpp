@@ -183,10 +183,38 @@ const char* verdict_word(Verdict verdict, ExperimentKind kind) {
   return to_string(verdict);
 }
 
+std::vector<std::string> timed_runs(const Experiment& ex) {
+  std::vector<std::string> pending, seen, runs;
+  for (const PartSpec& p : ex.parts)
+    if (p.timing && p.rule)
+      for (const std::string& n : p.rule->scalar_names()) pending.push_back(n);
+  while (!pending.empty()) {
+    const std::string name = pending.back();
+    pending.pop_back();
+    if (std::find(seen.begin(), seen.end(), name) != seen.end()) continue;
+    seen.push_back(name);
+    for (const MeasureSpec& m : ex.measures) {
+      if (m.name != name) continue;
+      if (!m.run.empty()) {
+        if (std::find(runs.begin(), runs.end(), m.run) == runs.end()) runs.push_back(m.run);
+      } else {
+        for (const std::string& n : m.value.scalar_names()) pending.push_back(n);
+      }
+    }
+  }
+  std::vector<std::string> in_order;  // the experiment's order of runs
+  for (const RunSpec& r : ex.runs)
+    if (std::find(runs.begin(), runs.end(), r.name) != runs.end()) in_order.push_back(r.name);
+  return in_order;
+}
+
 std::vector<PlannedRun> plan_runs(const Experiment& ex, const EvaluateOptions& options) {
   std::vector<PlannedRun> out;
+  const std::vector<std::string> timed = timed_runs(ex);
+  int groups = 0, timed_group = -1;
   for (const RunSpec& run : ex.runs) {
     const int trials = ex.trials(run, options.tier);
+    const bool is_timed = std::find(timed.begin(), timed.end(), run.name) != timed.end();
     for (int trial = 0; trial < trials; ++trial) {
       PlannedRun p;
       p.experiment = ex.id;
@@ -196,7 +224,10 @@ std::vector<PlannedRun> plan_runs(const Experiment& ex, const EvaluateOptions& o
       p.overrides = ex.overrides(run, options.tier, trial);
       p.file = options.runs_dir / ex.id / (trial_stem(run, trials, trial) + ".h5");
       const config::Config cfg = config::load(p.scenario, p.overrides);
-      p.current = run_is_current(p.file, cfg.to_toml());
+      p.config_toml = cfg.to_toml();
+      p.current = run_is_current(p.file, p.config_toml);
+      if (is_timed && timed_group < 0) timed_group = groups++;
+      p.group = is_timed ? timed_group : groups++;
       out.push_back(std::move(p));
     }
   }

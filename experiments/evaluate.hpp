@@ -89,6 +89,10 @@ ClaimResult evaluate_claim(const Experiment& experiment, const EvaluateOptions& 
 
 // The run files an experiment needs in a tier, in a stable order (runs, then trials), with the
 // configuration each must hold; `current` when the file already holds it from this build.
+// `group`: runs of one group must be made in one process of one task when the runs are split
+// into shards (a job array): every run read by a measure that a `timing = true` part uses (its
+// wall-clock times are compared) is in one group; every other trial is a group of its own.
+// Groups are numbered from 0 within the experiment, in the order of the plan.
 struct PlannedRun {
   std::string experiment;  // id
   std::string run;         // name
@@ -96,8 +100,14 @@ struct PlannedRun {
   std::string scenario;    // what `pbdbench run` loads
   std::vector<config::Override> overrides;
   std::filesystem::path file;
+  std::string config_toml;  // the configuration the file must hold
   bool current = false;
+  int group = 0;
 };
+
+// The names of the runs whose measures the experiment's `timing = true` parts read (through
+// the measures computed from other measures).
+std::vector<std::string> timed_runs(const Experiment& experiment);
 std::vector<PlannedRun> plan_runs(const Experiment& experiment, const EvaluateOptions& options);
 
 // A run file as the scope of a measure's expression: its series (width-3 ones by component,

@@ -138,5 +138,69 @@ TEST(Evaluate, CombinesPartVerdicts) {
   EXPECT_STREQ(verdict_word(Verdict::Contradicted, ExperimentKind::Claim), "contradicted");
 }
 
+// Shards keep timed comparisons in one task: every run a timing part reads (through derived
+// measures) shares one group; every other trial is a group of its own.
+TEST(Evaluate, PlanGroupsTheRunsATimingPartCompares) {
+  const fs::path dir = scratch("groups");
+  std::ofstream(dir / "S9.5.toml") << R"toml(id = "S9.5"
+section = "9.5"
+claim = "more iterations cost more"
+experiment = "two timed runs, one untimed run with trials"
+scenario = "free_fall"
+[set]
+"time.duration" = 0.1
+[[run]]
+name = "few"
+set = { "solver.iterations" = 1 }
+[[run]]
+name = "other"
+trials = 3
+trial_key = "solver.shuffle_seed"
+[[run]]
+name = "many"
+set = { "solver.iterations" = 50 }
+[[measure]]
+name = "time_few"
+run = "few"
+value = "mean(wall_step)"
+doc = "time_few"
+[[measure]]
+name = "time_many"
+run = "many"
+value = "mean(wall_step)"
+doc = "time_many"
+[[measure]]
+name = "fall"
+run = "other"
+value = "final(height_min)"
+doc = "fall"
+[[measure]]
+name = "cost"
+value = "time_many / time_few"
+doc = "cost"
+[[part]]
+says = "many iterations cost more"
+rule = "cost > 1"
+timing = true
+[[part]]
+says = "it falls"
+rule = "fall < 1"
+)toml";
+  const Experiment ex = load_experiment(dir / "S9.5.toml");
+  EXPECT_EQ(timed_runs(ex), (std::vector<std::string>{"few", "many"}));
+  EvaluateOptions options;
+  options.runs_dir = dir / "runs";
+  const std::vector<PlannedRun> plan = plan_runs(ex, options);
+  ASSERT_EQ(plan.size(), 5u);  // few, other x 3, many
+  EXPECT_EQ(plan[0].run, "few");
+  EXPECT_EQ(plan[4].run, "many");
+  EXPECT_EQ(plan[0].group, plan[4].group);
+  for (size_t k = 1; k <= 3; ++k) {
+    EXPECT_NE(plan[k].group, plan[0].group);
+    for (size_t j = 1; j < k; ++j) EXPECT_NE(plan[k].group, plan[j].group);
+  }
+  EXPECT_FALSE(plan[0].config_toml.empty());
+}
+
 }  // namespace
 }  // namespace pbdbench::experiments
