@@ -63,7 +63,13 @@ std::string unfinished_report(const std::vector<UnfinishedRun>& runs, int shards
                                 runs.size() == 1 ? "is" : "are");
   for (const auto& [shard, list] : by_shard) {
     out += fmt::format("  shard {} of {}: {} run{}\n", shard, shards, list.size(), list.size() == 1 ? "" : "s");
-    for (const UnfinishedRun* r : list) {
+    constexpr size_t kShown = 10;  // per shard; index.json lists every run with its status
+    for (size_t k = 0; k < list.size(); ++k) {
+      if (k == kShown) {
+        out += fmt::format("    ... and {} more (index.json beside the run files lists them all)\n", list.size() - k);
+        break;
+      }
+      const UnfinishedRun* r = list[k];
       std::string why = r->state;
       if (r->state == "missing") why = "missing (no run file: the task did not reach it)";
       else if (r->state == "incomplete") why = "incomplete (interrupted: cancelled, timed out or killed)";

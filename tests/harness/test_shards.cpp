@@ -59,4 +59,7 @@ TEST(Shards, RunStateAgainstThePlannedConfiguration) {
   EXPECT_NE(text.find("shard 0 of 3: 1 run\n    S9/b: incomplete"), std::string::npos) << text;
   EXPECT_NE(text.find("shard 2 of 3: 2 runs\n    S9/a: missing"), std::string::npos) << text;
   EXPECT_EQ(text.substr(text.size() - 5), "NEXT\n");
+  // A long list is cut at ten runs a shard.
+  const std::vector<UnfinishedRun> many(12, UnfinishedRun{0, "S9/x", file, "missing"});
+  EXPECT_NE(unfinished_report(many, 1, "").find("    ... and 2 more (index.json"), std::string::npos);
 }
