@@ -83,7 +83,9 @@ RegressShards regress_shards(const RegressCommand& cmd, int shards) {
   for (size_t k = 0; k < cases.size(); ++k) {
     r.shard.push_back(shard_of(k, shards));
     const std::string config = config::load(cases[k]->scenario, cases[k]->set).to_toml();
-    r.to_make.push_back(cmd.force || cmd.repeat || !run_is_current(out / "runs" / (cases[k]->name + ".h5"), config));
+    bool make = cmd.force;
+    for (const fs::path& file : files_of(cmd, out, *cases[k])) make = make || !run_is_current(file, config);
+    r.to_make.push_back(make);
   }
   return r;
 }
@@ -134,9 +136,12 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
       if (shard_of(k, cmd.shard_count) != cmd.shard_index) continue;
       const config::Config cfg = config::load(cases[k]->scenario, cases[k]->set);
       const std::vector<fs::path> files = files_of(cmd, outcome.out, *cases[k]);
-      if (force || !run_is_current(files[0], cfg.to_toml()))
-        children.push_back({cases[k]->scenario, cases[k]->set, files[0]});
-      if (files.size() > 1) children.push_back({cases[k]->scenario, cases[k]->set, files[1]});
+      // The second run of --repeat is made again here, but in a shard only when it is not
+      // current (a resubmission completes what is missing).
+      const bool shard = cmd.shard_count > 1;
+      for (size_t f = 0; f < files.size(); ++f)
+        if (force || (f == 1 && !shard) || !run_is_current(files[f], cfg.to_toml()))
+          children.push_back({cases[k]->scenario, cases[k]->set, files[f]});
     }
     const int jobs = cmd.jobs > 0 ? cmd.jobs : slurm::allocated_cpus();
     log << fmt::format("regress: {} cases{}, {} runs to make, {} at a time -> {}\n", cases.size(),

@@ -69,7 +69,7 @@ RegressOutcome run_regress(const RegressCommand& command, std::ostream& out, std
 std::filesystem::path regress_out(const RegressCommand& command);
 struct RegressShards {
   std::vector<int> shard;     // per case
-  std::vector<bool> to_make;  // not current, --force or --repeat
+  std::vector<bool> to_make;  // a run (or its --repeat) not current, or --force
 };
 RegressShards regress_shards(const RegressCommand& command, int shards);
 

@@ -79,9 +79,10 @@ int submit_to_slurm(const std::string& command, const ArrayOptions& o, const fs:
   for (const char* name : {"PBDBENCH_DATA_DIR", "PBDBENCH_SCENARIOS", "PBDBENCH_CLAIMS"})
     if (const char* v = std::getenv(name); v != nullptr && *v != '\0')
       jobs.environment.emplace_back(name, fs::absolute(v).lexically_normal().string());
+  // submit.sh completes what is missing: without --force (which would redo every run again).
   std::vector<std::string> again = {jobs.executable.string()};
   for (const std::string& a : typed)
-    if (a != "--no-submit") again.push_back(a);
+    if (a != "--no-submit" && a != "--force") again.push_back(a);
   const slurm::ScriptFiles files = slurm::write_scripts(jobs, site, again);
 
   out << fmt::format("{}: {} of {} runs to make, in {} of {} shards; scripts and logs in {}\n", command, runs_left, runs,

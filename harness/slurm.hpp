@@ -5,8 +5,8 @@
 //   <command>.merge.sbatch   the merge: `pbdbench <command> ... --merge N`, which checks that
 //                            every shard finished its runs (else it fails, listing them) and
 //                            writes the report; it never makes a run itself
-//   submit.sh                the command that wrote them: running it again submits only the
-//                            shards with runs left, and a new merge
+//   submit.sh                the command that wrote them (less --force): running it again
+//                            submits only the shards with runs left, and a new merge
 // and submits the array, then the merge after it (afterany: the merge runs whatever became of
 // the tasks, so that a failure is reported rather than left pending). Every option of the
 // command is carried into both jobs (the command line as typed, less the Slurm options), the

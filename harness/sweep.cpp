@@ -342,9 +342,14 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
   }
   if (options.merge_shards > 0) {
     // The merge makes no run: what is not current is unfinished, named with its shard.
-    for (size_t k : pending) {
+    for (size_t k : pending) {  // (with --force every run is pending: the current ones are fine)
       SweepRunResult& r = result.runs[k];
       r.status = run_state(r.file, configs[k]);
+      if (r.status == "current") {
+        r.skipped = true;
+        r.status = read_run_file(r.file, false).status();
+        continue;
+      }
       result.unfinished.push_back({static_cast<int>(indices[k] % static_cast<size_t>(options.merge_shards)),
                                    spec.runs[indices[k]].stem, r.file, r.status});
     }

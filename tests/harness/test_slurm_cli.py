@@ -188,6 +188,15 @@ class SlurmCliTest(unittest.TestCase):
             self.assertIn("--set solver.name=pbd", f.read())
         with open(os.path.join(self.dir, "sw", "slurm", "sweep-merge-101.log")) as f:
             self.assertIn("solver.iterations=3", f.read())  # the summary table
+        # --force redoes the runs in the tasks, never in the merge; submit.sh does not carry it.
+        r = pbdbench("sweep", sweep, "--out", "sw", "--set", "solver.name=pbd", "--merge", "2", "--force", cwd=self.dir)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("3 runs, 0 not finished", r.stdout)
+        r = pbdbench("sweep", sweep, "--out", "sw", "--set", "solver.name=pbd", "--slurm", "2", "--force", "--no-submit",
+                     cwd=self.dir, env=self.env)
+        self.assertIn("3 of 3 runs to make", r.stdout)
+        with open(os.path.join(self.dir, "sw", "slurm", "submit.sh")) as f:
+            self.assertNotIn("--force", f.read())
 
         base = os.path.join(self.dir, "base.toml")
         cases = ["spring_xpbd", "chain_pbd"]
@@ -204,6 +213,13 @@ class SlurmCliTest(unittest.TestCase):
             local = json.load(f)
         with open(os.path.join(self.dir, "rs", "regress.json")) as f:
             sharded = json.load(f)
+        # --repeat: both runs of every case made in the tasks, compared in the merge.
+        r = pbdbench("regress", *cases, "--baselines", base, "--no-plot", "--out", "rr", "--repeat", "--slurm", "2",
+                     cwd=self.dir, env=self.env)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertEqual(self.submissions()[-1]["tasks"], {"None": 0})
+        with open(os.path.join(self.dir, "rr", "regress.md")) as f:
+            self.assertEqual(f.read().count("run twice, the same bits"), 2)
         for case in cases:  # the same bits; only the wall clock differs
             local[case].pop("wall_per_step")
             sharded[case].pop("wall_per_step")
