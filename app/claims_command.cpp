@@ -9,11 +9,16 @@
 
 #include <fmt/format.h>
 
+#include "experiments/claim_index.hpp"
 #include "experiments/evaluate.hpp"
+#include "experiments/registry.hpp"
 #include "experiments/report.hpp"
+#include "experiments/sha256.hpp"
+#include "experiments/timing.hpp"
 #include "harness/shards.hpp"
 #include "harness/slurm.hpp"
 #include "harness/sweep.hpp"
+#include "runfile/build_info.hpp"
 #include "runfile/run_file.hpp"
 
 namespace pbdbench::experiments {
@@ -65,48 +70,46 @@ void write_index(const fs::path& path, const std::vector<PlannedRun>& plan) {
   write_text(path, js.str());
 }
 
-// The experiments the command names (all of them by default), in the index's order.
-std::vector<Experiment> chosen_experiments(const ClaimsCommand& cmd, fs::path& dir) {
-  const bool claims = cmd.kind == ExperimentKind::Claim;
-  dir = !cmd.experiments.empty() ? cmd.experiments : claims ? experiments_dir() : reproductions_dir();
-  std::vector<Experiment> all = load_experiments(dir);
-  if (cmd.ids.empty()) return all;
+}  // namespace
+
+namespace {
+
+fs::path folder_of(ExperimentKind kind, const fs::path& given) {
+  return !given.empty() ? given : kind == ExperimentKind::Claim ? experiments_dir() : reproductions_dir();
+}
+
+// Relative to the working folder, like every default output folder.
+fs::path whole_report_dir(ExperimentKind kind) {
+  return kind == ExperimentKind::Claim ? fs::path("paper") / "claims" : fs::path("paper");
+}
+
+// The experiments named (all when none), in the index's order; throws for an unknown id.
+std::vector<Experiment> choose(const std::vector<Experiment>& all, const std::vector<std::string>& ids, bool claims,
+                               const fs::path& dir) {
   std::vector<Experiment> chosen;
-  for (const std::string& id : cmd.ids) {
+  for (const std::string& id : ids) {
     auto it = std::find_if(all.begin(), all.end(), [&](const Experiment& e) { return e.id == id; });
     if (it == all.end()) {
-      std::vector<std::string> ids;
-      for (const Experiment& e : all) ids.push_back(e.id);
+      std::vector<std::string> known;
+      for (const Experiment& e : all) known.push_back(e.id);
       throw ExperimentError(fmt::format("no {} '{}' in {}; there are: {}", claims ? "claim" : "experiment", id,
-                                        dir.string(), fmt::join(ids, ", ")));
+                                        dir.string(), fmt::join(known, ", ")));
     }
     chosen.push_back(*it);
   }
-  return chosen;
+  return ids.empty() ? all : chosen;
 }
 
-// Every run of the chosen experiments, with its shard of `shards`: the units are the plan's
-// groups (the runs a timing part compares stay together), dealt by harness/shards.hpp.
-std::vector<PlannedRun> plan_all(const std::vector<Experiment>& chosen, const EvaluateOptions& options) {
-  std::vector<PlannedRun> plan;
-  for (const Experiment& e : chosen)
-    for (PlannedRun& p : plan_runs(e, options)) plan.push_back(std::move(p));
-  return plan;
-}
-
-std::vector<int> shards_of_plan(const std::vector<PlannedRun>& plan, int shards) {
-  std::map<std::pair<std::string, int>, size_t> unit_of;
-  std::vector<size_t> sizes, unit(plan.size());
-  for (size_t k = 0; k < plan.size(); ++k) {
-    auto [it, added] = unit_of.try_emplace({plan[k].experiment, plan[k].group}, sizes.size());
-    if (added) sizes.push_back(0);
-    ++sizes[it->second];
-    unit[k] = it->second;
+// The experiments of the folder (claims: checked against the index), then those the command names.
+std::vector<Experiment> load_chosen(const ClaimsCommand& cmd, fs::path& dir, std::optional<ClaimIndex>& index) {
+  const bool claims = cmd.kind == ExperimentKind::Claim;
+  dir = folder_of(cmd.kind, cmd.experiments);
+  std::vector<Experiment> all = load_experiments(dir);
+  if (claims) {  // the index and the experiments cover each other
+    index = read_claim_index(claim_index_of(dir));
+    check_coverage(*index, all);
   }
-  const std::vector<int> dealt = deal_units(sizes, shards);
-  std::vector<int> out(plan.size());
-  for (size_t k = 0; k < plan.size(); ++k) out[k] = dealt[unit[k]];
-  return out;
+  return choose(all, cmd.ids, claims, dir);
 }
 
 EvaluateOptions evaluate_options(const ClaimsCommand& cmd, std::ostream* log) {
@@ -118,6 +121,28 @@ EvaluateOptions evaluate_options(const ClaimsCommand& cmd, std::ostream* log) {
   return options;
 }
 
+// The units of the shards (harness/shards.hpp): every planned run alone, and every [[timing]]
+// group whole (its runs are timed together in one task: their costs are compared), weighed by
+// the runs it makes (runs x (repeats + the warm-up)).
+struct Units {
+  std::vector<PlannedRun> plan;
+  std::vector<std::pair<const Experiment*, const TimingSpec*>> timings;
+  std::vector<int> run_shard, timing_shard;
+};
+Units units_of(const std::vector<Experiment>& chosen, const EvaluateOptions& options, int shards) {
+  Units u;
+  for (const Experiment& e : chosen) {
+    for (PlannedRun& p : plan_runs(e, options)) u.plan.push_back(std::move(p));
+    for (const TimingSpec& t : e.timings) u.timings.emplace_back(&e, &t);
+  }
+  std::vector<size_t> sizes(u.plan.size(), 1);
+  for (const auto& [e, t] : u.timings) sizes.push_back(t->runs.size() * static_cast<size_t>(t->repeats + 1));
+  const std::vector<int> dealt = deal_units(sizes, shards);
+  u.run_shard.assign(dealt.begin(), dealt.begin() + static_cast<long>(u.plan.size()));
+  u.timing_shard.assign(dealt.begin() + static_cast<long>(u.plan.size()), dealt.end());
+  return u;
+}
+
 }  // namespace
 
 fs::path runs_folder(const ClaimsCommand& cmd) {
@@ -126,40 +151,59 @@ fs::path runs_folder(const ClaimsCommand& cmd) {
 
 ShardPlan shard_plan(const ClaimsCommand& cmd, int shards) {
   fs::path dir;
-  const std::vector<PlannedRun> plan = plan_all(chosen_experiments(cmd, dir), evaluate_options(cmd, nullptr));
+  std::optional<ClaimIndex> index;
+  const std::vector<Experiment> chosen = load_chosen(cmd, dir, index);
+  const EvaluateOptions options = evaluate_options(cmd, nullptr);
+  const Units u = units_of(chosen, options, shards);
   ShardPlan out;
-  out.shard = shards_of_plan(plan, shards);
-  for (const PlannedRun& p : plan) out.to_make.push_back(cmd.force || !p.current);
+  for (size_t k = 0; k < u.plan.size(); ++k) {
+    out.shard.push_back(u.run_shard[k]);
+    out.to_make.push_back(cmd.force || !u.plan[k].current);
+  }
+  for (size_t k = 0; k < u.timings.size(); ++k) {
+    out.shard.push_back(u.timing_shard[k]);
+    out.to_make.push_back(cmd.force ||
+                          !timing_is_current(*u.timings[k].first, *u.timings[k].second, cmd.tier, options.runs_dir));
+  }
   return out;
 }
 
 ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostream& log) {
   const bool claims = cmd.kind == ExperimentKind::Claim;
   fs::path dir;
-  const std::vector<Experiment> chosen = chosen_experiments(cmd, dir);
+  std::optional<ClaimIndex> index;
+  const std::vector<Experiment> chosen = load_chosen(cmd, dir, index);
 
   const std::string tier = to_string(cmd.tier);
   ClaimsOutcome outcome;
-  const fs::path whole_report = claims ? fs::path("paper") / "claims" : fs::path("paper");
+  const fs::path whole_report = whole_report_dir(cmd.kind);
   outcome.out = !cmd.out.empty() ? cmd.out
                 : (cmd.ids.empty() && cmd.tier == Tier::Full) ? whole_report
                                                                 : fs::path("results") / command_name(cmd.kind) / tier;
   EvaluateOptions options = evaluate_options(cmd, &log);
   outcome.runs = options.runs_dir;
 
-  // The merge of shards: every run must be finished; it makes none.
+  // The merge of shards: every run and every timing group must be finished; it makes none.
   if (cmd.merge_shards > 0) {
-    const std::vector<PlannedRun> plan = plan_all(chosen, options);
-    const std::vector<int> shard = shards_of_plan(plan, cmd.merge_shards);
-    for (size_t k = 0; k < plan.size(); ++k) {
-      const std::string state = run_state(plan[k].file, plan[k].config_toml);
+    const Units u = units_of(chosen, options, cmd.merge_shards);
+    for (size_t k = 0; k < u.plan.size(); ++k) {
+      const PlannedRun& p = u.plan[k];
+      const std::string state = run_state(p.file, p.config_toml);
       if (state != "current")
-        outcome.unfinished.push_back({shard[k], fmt::format("{}/{}", plan[k].experiment, plan[k].file.stem().string()),
-                                      plan[k].file, state});
+        outcome.unfinished.push_back({u.run_shard[k], fmt::format("{}/{}", p.experiment, p.file.stem().string()), p.file,
+                                      state});
     }
-    write_index(options.runs_dir / "index.json", plan);
-    log << fmt::format("{}: merge of {} shards: {} runs, {} not finished\n", command_name(cmd.kind),
-                       cmd.merge_shards, plan.size(), outcome.unfinished.size());
+    for (size_t k = 0; k < u.timings.size(); ++k) {
+      const auto& [e, t] = u.timings[k];
+      if (timing_is_current(*e, *t, cmd.tier, options.runs_dir)) continue;
+      const fs::path record = timing_record_path(options.runs_dir, e->id, t->name);
+      outcome.unfinished.push_back({u.timing_shard[k], fmt::format("{}/timing group {}", e->id, t->name), record,
+                                    fs::exists(record) ? "stale" : "missing"});
+    }
+    write_index(options.runs_dir / "index.json", u.plan);
+    log << fmt::format("{}: merge of {} shards: {} runs and {} timing groups, {} not finished\n",
+                       command_name(cmd.kind), cmd.merge_shards, u.plan.size(), u.timings.size(),
+                       outcome.unfinished.size());
     if (!outcome.unfinished.empty()) {
       outcome.out.clear();
       return outcome;
@@ -169,16 +213,15 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
 
   // The runs in child processes: a shard's, or all of them with --jobs.
   if (cmd.shard_count > 1 || cmd.jobs > 1) {
-    const std::vector<PlannedRun> plan = plan_all(chosen, options);
-    const std::vector<int> shard = shards_of_plan(plan, cmd.shard_count);
+    const Units u = units_of(chosen, options, cmd.shard_count);
     std::vector<ChildRun> children;
-    for (size_t k = 0; k < plan.size(); ++k) {
-      if (shard[k] != cmd.shard_index) continue;
-      if (plan[k].current && !cmd.force) continue;
-      children.push_back({plan[k].scenario, plan[k].overrides, plan[k].file});
+    for (size_t k = 0; k < u.plan.size(); ++k) {
+      if (u.run_shard[k] != cmd.shard_index) continue;
+      if (u.plan[k].current && !cmd.force) continue;
+      children.push_back({u.plan[k].scenario, u.plan[k].overrides, u.plan[k].file});
     }
     const int jobs = cmd.jobs > 0 ? cmd.jobs : slurm::allocated_cpus();
-    log << fmt::format("{}: {} runs{}, {} to run, {} at a time -> {}\n", command_name(cmd.kind), plan.size(),
+    log << fmt::format("{}: {} runs{}, {} to run, {} at a time -> {}\n", command_name(cmd.kind), u.plan.size(),
                        cmd.shard_count > 1 ? fmt::format(" (shard {} of {})", cmd.shard_index, cmd.shard_count) : "",
                        children.size(), jobs, options.runs_dir.string());
     run_children(cmd.executable, children, jobs,
@@ -189,28 +232,49 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
                    }
                  });
     if (cmd.shard_count > 1) {
-      write_index(options.runs_dir / fmt::format("index.shard-{}-of-{}.json", cmd.shard_index, cmd.shard_count), plan);
-      out << fmt::format("shard {} of {}: {} runs made, {} failed; then --merge {} writes the report\n",
-                         cmd.shard_index, cmd.shard_count, children.size(), outcome.failed_runs, cmd.shard_count);
+      // This shard's timing groups, each timed whole in this process once the runs are done (or
+      // read from a current record).
+      int timed = 0;
+      for (size_t k = 0; k < u.timings.size(); ++k)
+        if (u.timing_shard[k] == cmd.shard_index) {
+          (void)time_group(*u.timings[k].first, *u.timings[k].second, cmd.tier, options.runs_dir, cmd.force, &log);
+          ++timed;
+        }
+      write_index(options.runs_dir / fmt::format("index.shard-{}-of-{}.json", cmd.shard_index, cmd.shard_count), u.plan);
+      out << fmt::format("shard {} of {}: {} runs made, {} failed, {} timing groups; then --merge {} writes the report\n",
+                         cmd.shard_index, cmd.shard_count, children.size(), outcome.failed_runs, timed,
+                         cmd.shard_count);
       outcome.out.clear();
       return outcome;
     }
-    write_index(options.runs_dir / "index.json", plan);
+    write_index(options.runs_dir / "index.json", u.plan);
     options.force = false;  // everything is now current: the evaluation reads it
   }
 
   log << fmt::format("{}: {} experiment{}, {} tier, run files in {}\n", command_name(cmd.kind), chosen.size(),
                      chosen.size() == 1 ? "" : "s", tier, options.runs_dir.string());
-  out << fmt::format("id      verdict{}parts ({} {}, {} {}, - not testable), time\n",
+  out << fmt::format("id      verdict{}parts ({} {}, {} {}, I inconclusive, - not testable{}; "
+                     "lower case: beyond the article's regime), time\n",
                      claims ? "       " : "           ", claims ? "S" : "R", claims ? "supported" : "reproduced",
-                     claims ? "C" : "N", claims ? "contradicted" : "not reproduced");
+                     claims ? "C" : "N", claims ? "contradicted" : "not reproduced",
+                     claims ? "" : ", U setup unknown, = identity");
   std::vector<ClaimResult> results;
   for (const Experiment& e : chosen) {
     results.push_back(evaluate_claim(e, options));
     const ClaimResult& r = results.back();
     std::string parts;
-    for (const PartResult& p : r.parts)
-      parts += p.verdict == Verdict::Supported ? (claims ? 'S' : 'R') : p.verdict == Verdict::Contradicted ? (claims ? 'C' : 'N') : '-';
+    for (const PartResult& p : r.parts) {
+      char ch = '-';
+      switch (p.verdict) {
+        case Verdict::Supported: ch = claims ? 'S' : 'R'; break;
+        case Verdict::Contradicted: ch = claims ? 'C' : 'N'; break;
+        case Verdict::Inconclusive: ch = 'I'; break;
+        case Verdict::SetupUnknown: ch = 'U'; break;
+        case Verdict::Identity: ch = '='; break;
+        default: break;
+      }
+      parts += p.beyond ? static_cast<char>(std::tolower(ch)) : ch;
+    }
     out << fmt::format("{:<7} {:<{}} [{}] {:6.1f} s\n", r.id, verdict_word(r.verdict, r.kind), claims ? 13 : 17, parts,
                        r.wall_time);
     out.flush();
@@ -223,17 +287,29 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
   ctx.command = cmd.command_line;
   ctx.figures_dir = "figures";
   ctx.jobs = std::max(cmd.jobs, 1);
+  if (index) ctx.index = &*index;
+  const std::vector<Registration> registry = read_registry(registry_of(dir));
+  for (const ClaimResult& r : results)
+    ctx.registration.emplace(r.id, registration_status(registry, registry_of(dir), r.id, r.file,
+                                                       build_info().git_commit));
   write_text(outcome.out / "README.md", report_markdown(results, ctx));
   write_text(outcome.out / (claims ? "claims.json" : "reproductions.json"), results_json(results, ctx, outcome.out));
   if (!cmd.record.empty()) write_text(cmd.record, verdicts_toml(results, cmd.tier));
   if (!cmd.expect.empty()) outcome.differences = verdict_differences(results, cmd.expect);
 
-  int counts[3] = {0, 0, 0};
-  for (const ClaimResult& r : results) ++counts[static_cast<int>(r.verdict)];
-  out << fmt::format("{} {}: {} {}, {} {}, {} not testable -> {}\n", results.size(),
-                     claims ? "claims" : "experiments", counts[0], claims ? "supported" : "reproduced", counts[1],
-                     claims ? "contradicted" : "not reproduced", counts[2], (outcome.out / "README.md").string());
+  out << part_counts_line(results) << "\n" << experiment_counts_line(results) << "\n-> "
+      << (outcome.out / "README.md").string() << "\n";
   return outcome;
+}
+
+int run_register(const RegisterCommand& cmd, std::ostream& out) {
+  const bool claims = cmd.kind == ExperimentKind::Claim;
+  const fs::path dir = folder_of(cmd.kind, cmd.experiments);
+  const std::vector<Experiment> all = load_experiments(dir);
+  if (claims) check_coverage(read_claim_index(claim_index_of(dir)), all);
+  const fs::path results = !cmd.results.empty() ? cmd.results
+                                                : whole_report_dir(cmd.kind) / (claims ? "claims.json" : "reproductions.json");
+  return register_experiments(choose(all, cmd.ids, claims, dir), registry_of(dir), results, cmd.note, out);
 }
 
 }  // namespace pbdbench::experiments

@@ -15,10 +15,10 @@
 // results/<claims|paper>/<tier>/runs/<id>/ (--runs), the report in results/<claims|paper>/<tier>
 // (--out), or paper/ and paper/claims/ for every experiment of the full tier. A run file already
 // holding the same finished configuration from the same build is read, not run again (--force
-// runs everything again). Shards: the runs whose wall-clock times a `timing = true` part compares
-// stay in one shard (experiments/evaluate.hpp, PlannedRun::group); a shard writes
-// <runs>/index.shard-I-of-N.json, the merge (and --jobs) <runs>/index.json (every run file with
-// its status).
+// runs everything again). Shards: every run is a unit of its own, every [[timing]] group one unit
+// timed whole in one task (experiments/timing.hpp: its costs are compared with each other); a shard
+// writes <runs>/index.shard-I-of-N.json, the merge (and --jobs) <runs>/index.json (every run file
+// with its status).
 #pragma once
 
 #include <filesystem>
@@ -64,11 +64,27 @@ ClaimsOutcome run_claims(const ClaimsCommand& command, std::ostream& out, std::o
 // The run files' folder: --runs, else results/<claims|paper>/<tier>/runs.
 std::filesystem::path runs_folder(const ClaimsCommand& command);
 
-// For --slurm: every planned run's shard of `shards`, and whether it is still to be made.
+// For --slurm: the shard of every unit of `shards` (each planned run, each [[timing]] group),
+// and whether it is still to be made.
 struct ShardPlan {
-  std::vector<int> shard;     // per planned run
+  std::vector<int> shard;     // per unit
   std::vector<bool> to_make;  // not current, or --force
 };
 ShardPlan shard_plan(const ClaimsCommand& command, int shards);
+
+// `pbdbench register claims|paper [IDS] [--note TEXT]`: records the SHA-256 of each experiment file
+// whose content is not registered yet in the registry beside its folder (experiments/registry.hpp).
+// When the committed report already holds results for an experiment, the registration is a
+// revision after results: the note is required, and the earlier verdicts and rules are kept in
+// the entry. Returns the number of experiments registered. Throws ExperimentError for bad input.
+struct RegisterCommand {
+  ExperimentKind kind = ExperimentKind::Claim;
+  std::vector<std::string> ids;       // empty: every experiment of the folder
+  std::string note;
+  std::filesystem::path experiments;  // default: experiments_dir() or reproductions_dir()
+  std::filesystem::path results;      // the report's JSON (default paper/claims/claims.json or
+                                      // paper/reproductions.json)
+};
+int run_register(const RegisterCommand& command, std::ostream& out);
 
 }  // namespace pbdbench::experiments

@@ -54,7 +54,7 @@ void parse_array_options(const ArrayOptions& o, int& index, int& count) {
 
 int submit_to_slurm(const std::string& command, const ArrayOptions& o, const fs::path& run_files,
                     const std::vector<int>& shard, const std::vector<bool>& to_make, int argc, char** argv,
-                    std::ostream& out) {
+                    std::ostream& out, const std::string& what) {
   std::vector<int> shards_with_work;
   std::size_t runs_left = 0;
   for (std::size_t k = 0; k < shard.size(); ++k)
@@ -85,8 +85,8 @@ int submit_to_slurm(const std::string& command, const ArrayOptions& o, const fs:
     if (a != "--no-submit" && a != "--force") again.push_back(a);
   const slurm::ScriptFiles files = slurm::write_scripts(jobs, site, again);
 
-  out << fmt::format("{}: {} of {} runs to make, in {} of {} shards; scripts and logs in {}\n", command, runs_left, runs,
-                     shards_with_work.size(), o.slurm, jobs.dir.string());
+  out << fmt::format("{}: {} of {} {} to make, in {} of {} shards; scripts and logs in {}\n", command, runs_left, runs,
+                     what, shards_with_work.size(), o.slurm, jobs.dir.string());
   const std::string by_hand =
       shards_with_work.empty()
           ? fmt::format("sbatch {}", slurm::shell_quote(files.merge.string()))

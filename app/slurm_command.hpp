@@ -46,9 +46,10 @@ void parse_array_options(const ArrayOptions& options, int& shard_index, int& sha
 // to make (shard[k], to_make[k] for each run k; none: only the merge), or prints how with
 // --no-submit. argv is the command line as typed (the scripts carry all of it but the Slurm
 // options). Returns the exit code.
+// `what`: what the units are, for the message ("runs").
 int submit_to_slurm(const std::string& command, const ArrayOptions& options, const std::filesystem::path& run_files,
                     const std::vector<int>& shard, const std::vector<bool>& to_make, int argc, char** argv,
-                    std::ostream& out);
+                    std::ostream& out, const std::string& what = "runs");
 
 // The merge's refusal, printed to `err`: the unfinished runs by shard, then how to make them
 // (resubmit with <run_files>/slurm/submit.sh when --slurm wrote it, else the --shard commands).

@@ -4,8 +4,9 @@
   compare_results.py reports LOCAL.json OTHER.json EXPERIMENTS_DIR RUNS_DIR
       claims.json / reproductions.json of `pbdbench claims|paper`: every part's verdict and every
       measure (value and trials) must be identical, except those that read the wall clock
-      (series that the run files in RUNS_DIR mark deterministic = 0, the run scalar wall_time,
-      and the measures computed from them); a timing part may differ, and is listed.
+      (the measures of [[timing]] groups, those of series that the run files in RUNS_DIR mark
+      deterministic = 0 or of the run scalar wall_time, and the measures computed from them); a
+      timing part may differ, and is listed.
   compare_results.py runs LOCAL_DIR OTHER_DIR
       two folders of run files (a sweep): every deterministic series of each file, bit for bit.
   compare_results.py regress LOCAL.json OTHER.json REGISTRY.toml
@@ -49,10 +50,12 @@ def wall_clock_series(run_dir):
 
 
 def timing_measures(experiment, wall):
+    """Measures of a [[timing]] group, those reading a wall-clock series or scalar, and those
+    computed from either."""
     timing = set()
     for m in experiment.get("measure", []):
         names = set(NAME.findall(m["value"]))
-        if names & wall or names & timing:
+        if m.get("timing") or names & wall or names & timing:
             timing.add(m["name"])
     return timing
 
@@ -81,7 +84,7 @@ def compare_reports(local_path, other_path, experiments_dir, runs_dir):
         timing = timing_measures(experiments.get(a["id"], {}), wall)
         bm = {m["name"]: m for m in b["measures"]}
         for m in a["measures"]:
-            if m["name"] in timing:
+            if m["name"] in timing or m.get("timing"):
                 timed += 1
                 continue
             measures += 1

@@ -15,15 +15,22 @@ import unittest
 BIN = os.environ["PBDBENCH_BIN"]
 HERE = os.path.dirname(os.path.abspath(__file__))
 
-# Two timed runs (their costs are compared: they must share a task), and an untimed run of six
-# seeded trials.
-EXPERIMENT = """id = "S9.7"
-section = "9.7"
+# A timing group of two runs (timed together, interleaved: they must share a task), and an
+# untimed run of six seeded trials.
+EXPERIMENT = """kind = "reproduction"
+id = "chain_costs"
+section = "1"
+paper = "nobody 2026"
 claim = "more sweeps cost more, and shuffled orders hold a chain"
 experiment = "a short chain"
 scenario = "hanging_chain"
 [set]
 "time.duration" = 0.1
+[[setup]]
+what = "chain"
+value = "the catalog's"
+from = "assumed"
+why = "a test"
 [[run]]
 name = "few"
 set = { "solver.iterations" = 1 }
@@ -35,19 +42,14 @@ trial_key = "solver.shuffle_seed"
 [[run]]
 name = "many"
 set = { "solver.iterations" = 40 }
-[[measure]]
-name = "time_few"
-run = "few"
-value = "mean(wall_step)"
-doc = "s per step"
-[[measure]]
-name = "time_many"
-run = "many"
-value = "mean(wall_step)"
-doc = "s per step"
+[[timing]]
+name = "cost"
+runs = ["few", "many"]
+repeats = 7
 [[measure]]
 name = "cost"
-value = "time_many / time_few"
+timing = "cost"
+value = "many / few"
 doc = "cost ratio"
 [[measure]]
 name = "err"
@@ -57,10 +59,13 @@ doc = "final error"
 [[part]]
 says = "held"
 rule = "err < 0.1"
+published = "held"
+source = "nowhere"
 [[part]]
 says = "forty sweeps cost more than one"
 rule = "cost > 1"
-timing = true
+published = "more"
+source = "nowhere"
 """
 
 
@@ -79,7 +84,7 @@ class SlurmCliTest(unittest.TestCase):
         shutil.copy(os.path.join(HERE, "fake_sbatch.py"), os.path.join(self.bin, "sbatch"))
         self.env = dict(os.environ, PATH=self.bin + os.pathsep + os.environ["PATH"], FAKE_SBATCH_DIR=self.state)
         os.makedirs(os.path.join(self.dir, "exp"))
-        with open(os.path.join(self.dir, "exp", "S9.7.toml"), "w") as f:
+        with open(os.path.join(self.dir, "exp", "chain_costs.toml"), "w") as f:
             f.write(EXPERIMENT)
 
     def tearDown(self):
@@ -89,17 +94,17 @@ class SlurmCliTest(unittest.TestCase):
         with open(os.path.join(self.state, "submissions.jsonl")) as f:
             return [json.loads(line) for line in f]
 
-    def test_claims_array_with_a_cancelled_task_then_resubmitted(self):
+    def test_paper_array_with_a_cancelled_task_then_resubmitted(self):
         # Relative paths on purpose: the jobs run in the folder the command was typed in.
-        args = ["claims", "--experiments", "exp", "--runs", "runs", "--out", "report", "--no-plots"]
-        local = pbdbench("claims", "--experiments", "exp", "--runs", "local-runs", "--out", "local", "--no-plots",
+        args = ["paper", "--experiments", "exp", "--runs", "runs", "--out", "report", "--no-plots"]
+        local = pbdbench("paper", "--experiments", "exp", "--runs", "local-runs", "--out", "local", "--no-plots",
                          cwd=self.dir)
         self.assertEqual(local.returncode, 0, local.stdout + local.stderr)
 
         env = dict(self.env, FAKE_SBATCH_SKIP="1")
         r = pbdbench(*args, "--slurm", "3", "--slurm-opt", "--time=00:10:00 -p short", cwd=self.dir, env=env)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-        self.assertIn("8 of 8 runs to make, in 3 of 3 shards", r.stdout)
+        self.assertIn("7 of 7 runs and timing groups to make, in 3 of 3 shards", r.stdout)
         self.assertIn("submitted job array 100 (shards 0-2), and the merge, job 101, after it", r.stdout)
         array, merge = self.submissions()
         self.assertEqual(array["options"]["array"], "0-2")
@@ -107,16 +112,16 @@ class SlurmCliTest(unittest.TestCase):
         self.assertEqual(merge["options"]["dependency"], "afterany:100")
         self.assertEqual(merge["tasks"], {"None": 1})  # the merge failed, loudly
         slurm = os.path.join(self.dir, "runs", "slurm")
-        with open(os.path.join(slurm, "claims.array.sbatch")) as f:
+        with open(os.path.join(slurm, "paper.array.sbatch")) as f:
             script = f.read()
         # Every option is carried; the site's settings are there; the logs go beside the results.
-        self.assertIn('"$bin" claims --experiments exp --runs runs --out report --no-plots '
+        self.assertIn('"$bin" paper --experiments exp --runs runs --out report --no-plots '
                       '--shard "${SLURM_ARRAY_TASK_ID}/3"', script)
         self.assertIn("#SBATCH --time=00:10:00\n#SBATCH -p short\n", script)
         self.assertIn(f"#SBATCH --chdir={self.dir}\n", script)
-        self.assertIn(f"#SBATCH --output={slurm}/claims-%A_%a.log\n", script)
-        self.assertTrue(os.path.exists(os.path.join(slurm, "claims-100_0.log")))
-        with open(os.path.join(slurm, "claims-merge-101.log")) as f:
+        self.assertIn(f"#SBATCH --output={slurm}/paper-%A_%a.log\n", script)
+        self.assertTrue(os.path.exists(os.path.join(slurm, "paper-100_0.log")))
+        with open(os.path.join(slurm, "paper-merge-101.log")) as f:
             log = f.read()
         self.assertIn("of 1 shard (of 3) are not finished; nothing was merged", log)
         self.assertIn("shard 1 of 3:", log)
@@ -124,10 +129,12 @@ class SlurmCliTest(unittest.TestCase):
         self.assertIn(f"bash {slurm}/submit.sh", log)
         self.assertIn("--array=1 ", log)
         self.assertFalse(os.path.exists(os.path.join(self.dir, "report", "README.md")))
-        # The runs whose costs are compared were made in one task: both, or neither.
-        made = {n for n in os.listdir(os.path.join(self.dir, "runs", "S9.7")) if n.endswith(".h5")}
-        self.assertEqual("few.h5" in made, "many.h5" in made, made)
-        self.assertLess(len(made), 8)
+        # The timing group was timed whole in one task (the largest unit: shard 0); task 1's
+        # shuffled trials are missing.
+        made = sorted(n for n in os.listdir(os.path.join(self.dir, "runs", "chain_costs")) if n.endswith(".h5"))
+        self.assertEqual(made, ["shuffled-001.h5", "shuffled-003.h5", "shuffled-005.h5"])
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "runs", "chain_costs", "timing-cost.toml")))
+        self.assertIn("chain_costs/shuffled-000: missing", log)
 
         # Resubmission: only the shard left, and a new merge, which writes the report.
         r = subprocess.run(["bash", os.path.join(slurm, "submit.sh")], capture_output=True, text=True, env=self.env)
@@ -142,9 +149,9 @@ class SlurmCliTest(unittest.TestCase):
             self.assertTrue(os.path.exists(os.path.join(self.dir, "runs", f"index.shard-{i}-of-3.json")))
 
         # The same verdicts and the same non-timing numbers as the local run.
-        with open(os.path.join(self.dir, "local", "claims.json")) as f:
+        with open(os.path.join(self.dir, "local", "reproductions.json")) as f:
             a = json.load(f)["claims"][0]
-        with open(os.path.join(self.dir, "report", "claims.json")) as f:
+        with open(os.path.join(self.dir, "report", "reproductions.json")) as f:
             b = json.load(f)["claims"][0]
         self.assertEqual([p["verdict"] for p in a["parts"]], [p["verdict"] for p in b["parts"]])
         err_a = next(m for m in a["measures"] if m["name"] == "err")
@@ -154,11 +161,11 @@ class SlurmCliTest(unittest.TestCase):
         # Everything finished: another --slurm submits only the merge.
         r = pbdbench(*args, "--slurm", "3", cwd=self.dir, env=self.env)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-        self.assertIn("0 of 8 runs to make, in 0 of 3 shards", r.stdout)
+        self.assertIn("0 of 7 runs and timing groups to make, in 0 of 3 shards", r.stdout)
         self.assertIn("every run is finished: submitted only the merge", r.stdout)
 
     def test_merge_without_slurm_names_the_shards_to_make(self):
-        args = ["claims", "--experiments", "exp", "--runs", "runs", "--out", "report", "--no-plots"]
+        args = ["paper", "--experiments", "exp", "--runs", "runs", "--out", "report", "--no-plots"]
         r = pbdbench(*args, "--shard", "0/3", cwd=self.dir, env=dict(self.env, SLURM_CPUS_PER_TASK="1"))
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         self.assertIn("1 at a time", r.stderr)  # the allocation's cores, not the machine's
@@ -226,7 +233,7 @@ class SlurmCliTest(unittest.TestCase):
             self.assertEqual(local[case], sharded[case])
 
     def test_bad_slurm_options_are_refused(self):
-        args = ["claims", "--experiments", "exp", "--runs", "runs", "--no-plots"]
+        args = ["paper", "--experiments", "exp", "--runs", "runs", "--no-plots"]
         r = pbdbench(*args, "--slurm", "2", "--slurm-opt", "--array=0-9", cwd=self.dir, env=self.env)
         self.assertEqual(r.returncode, 2)
         self.assertIn("set by pbdbench itself", r.stderr)
@@ -242,7 +249,7 @@ class SlurmCliTest(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         self.assertIn("submit with:\n  jid=$(sbatch --parsable --array=0-1 ", r.stdout)
         self.assertFalse(os.path.exists(os.path.join(self.state, "submissions.jsonl")))
-        with open(os.path.join(self.dir, "runs", "slurm", "claims.merge.sbatch")) as f:
+        with open(os.path.join(self.dir, "runs", "slurm", "paper.merge.sbatch")) as f:
             merge = f.read()
         self.assertIn("#SBATCH --account=proj42\n", merge)
         self.assertIn("module load hdf5\nset -euo pipefail\n", merge)

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The installed pbdbench as a user gets it (cmake/Install.cmake): installed to a prefix, the prefix
 # moved elsewhere, the command run from a folder of the user's with no PBDBENCH_* variable set
-# (it finds its scenarios, experiments and plot scripts beside itself, and writes where it is
-# run), and a small outside C++ project (consumer/) built against the package with
+# (it finds its scenarios, regression cases, experiments and plot scripts beside itself, and
+# writes where it is run), and a small outside C++ project (consumer/) built against the package with
 # find_package(pbdbench) and run.
 # Usage: test_package.sh BUILD_DIR SOURCE_DIR WORK_DIR
 set -euo pipefail
@@ -21,10 +21,16 @@ if grep -rq -F "$(cd "$build" && pwd)" "$p/lib/cmake/pbdbench"; then fail "the p
 cd "$work/home"
 "$p/bin/pbdbench" list >list.txt
 grep -q -F "Scenarios ($p/share/pbdbench/scenarios)" list.txt || fail "list: $(head -1 list.txt)"
-# One claim, quick tier, with its figures (the installed scripts): written under this folder.
-"$p/bin/pbdbench" claims S3.4 --tier quick >claims.txt 2>&1 || { cat claims.txt >&2; fail "claims S3.4 failed"; }
-test -f results/claims/quick/README.md || fail "no report in results/claims/quick/"
-ls results/claims/quick/figures/*.png >/dev/null || fail "no figures (scripts/plot_claims.py)"
+# A regression case against the installed baselines, with its plot (the installed scripts),
+# written under this folder; the experiment catalogs load.
+"$p/bin/pbdbench" regress spring_xpbd >regress.txt 2>&1 || { cat regress.txt >&2; fail "regress spring_xpbd failed"; }
+grep -q "0 worse" regress.txt || fail "regress spring_xpbd: $(tail -3 regress.txt)"
+test -f results/regress/quick/regress.png || fail "no results/regress/quick/regress.png (scripts/plot_regress.py)"
+# The job scripts of an installed pbdbench call it where it is installed.
+study="$p/share/pbdbench/studies/default/chain_iterations_vs_substeps.toml"
+"$p/bin/pbdbench" sweep "$study" --slurm 2 --no-submit >slurm.txt 2>&1 || { cat slurm.txt >&2; fail "sweep --slurm 2 --no-submit"; }
+grep -q "^bin=$p/bin/pbdbench$" results/sweeps/chain_iterations_vs_substeps/slurm/sweep.array.sbatch ||
+  fail "the array script does not call $p/bin/pbdbench"
 # The baselines of an installation are not rewritten by default.
 set +e
 "$p/bin/pbdbench" regress spring_xpbd --update --no-plot >update.txt 2>&1

@@ -13,13 +13,20 @@ import unittest
 BIN = os.environ["PBDBENCH_BIN"]
 SCRIPT = os.path.join(os.environ["PBDBENCH_SCRIPTS"], "compare_results.py")
 
-EXPERIMENT = """id = "S9.8"
-section = "9.8"
+EXPERIMENT = """kind = "reproduction"
+id = "chain_check"
+section = "1"
+paper = "nobody 2026"
 claim = "a chain holds, and more sweeps cost more"
 experiment = "a short chain"
 scenario = "hanging_chain"
 [set]
 "time.duration" = 0.05
+[[setup]]
+what = "chain"
+value = "the catalog's"
+from = "assumed"
+why = "a test"
 [[run]]
 name = "few"
 set = { "solver.iterations" = 1 }
@@ -28,32 +35,34 @@ trial_key = "solver.shuffle_seed"
 [[run]]
 name = "many"
 set = { "solver.iterations" = 30 }
+[[timing]]
+name = "cost"
+runs = ["few", "many"]
+repeats = 7
 [[measure]]
 name = "err"
 run = "few"
 value = "final(constraint_error_max)"
 doc = "final error"
 [[measure]]
-name = "time_few"
-run = "few"
-value = "mean(wall_step)"
-doc = "s"
-[[measure]]
-name = "time_many"
-run = "many"
-value = "mean(wall_step)"
-doc = "s"
-[[measure]]
 name = "cost"
-value = "time_many / time_few"
+timing = "cost"
+value = "many / few"
 doc = "ratio"
+[[measure]]
+name = "cost_2"
+value = "2 * cost"
+doc = "twice"
 [[part]]
 says = "held"
 rule = "err < 1"
+published = "held"
+source = "nowhere"
 [[part]]
 says = "costs more"
-rule = "cost > 1"
-timing = true
+rule = "cost_2 > 2"
+published = "more"
+source = "nowhere"
 """
 
 
@@ -67,10 +76,10 @@ class CompareResultsTest(unittest.TestCase):
         cls.tmp = tempfile.TemporaryDirectory(prefix="pbdbench_compare_results_")
         d = cls.dir = cls.tmp.name
         os.makedirs(os.path.join(d, "exp"))
-        with open(os.path.join(d, "exp", "S9.8.toml"), "w") as f:
+        with open(os.path.join(d, "exp", "chain_check.toml"), "w") as f:
             f.write(EXPERIMENT)
         for name in ("a", "b"):
-            r = subprocess.run([BIN, "claims", "--experiments", os.path.join(d, "exp"), "--runs", os.path.join(d, name, "runs"),
+            r = subprocess.run([BIN, "paper", "--experiments", os.path.join(d, "exp"), "--runs", os.path.join(d, name, "runs"),
                                 "--out", os.path.join(d, name), "--no-plots"], capture_output=True, text=True)
             assert r.returncode == 0, r.stdout + r.stderr
 
@@ -80,11 +89,11 @@ class CompareResultsTest(unittest.TestCase):
 
     def reports(self, other):
         d = self.dir
-        return compare("reports", os.path.join(d, "a", "claims.json"), other, os.path.join(d, "exp"),
+        return compare("reports", os.path.join(d, "a", "reproductions.json"), other, os.path.join(d, "exp"),
                        os.path.join(d, "a", "runs"))
 
     def edited(self, edit):
-        with open(os.path.join(self.dir, "b", "claims.json")) as f:
+        with open(os.path.join(self.dir, "b", "reproductions.json")) as f:
             report = json.load(f)
         edit(report["claims"][0])
         path = os.path.join(self.dir, "edited.json")
@@ -93,36 +102,37 @@ class CompareResultsTest(unittest.TestCase):
         return path
 
     def test_two_runs_of_one_build_agree(self):
-        r = self.reports(os.path.join(self.dir, "b", "claims.json"))
+        r = self.reports(os.path.join(self.dir, "b", "reproductions.json"))
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         self.assertIn("1 experiments, 2 parts (1 timing): the verdicts of the 1 others identical; "
                       "1 non-timing measures identical", r.stdout)
-        self.assertIn("3 timing measures not compared", r.stdout)  # time_few, time_many, cost
-        r = compare("runs", os.path.join(self.dir, "a", "runs", "S9.8"), os.path.join(self.dir, "b", "runs", "S9.8"))
+        self.assertIn("2 timing measures not compared", r.stdout)  # cost, cost_2
+        r = compare("runs", os.path.join(self.dir, "a", "runs", "chain_check"),
+                    os.path.join(self.dir, "b", "runs", "chain_check"))
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-        self.assertIn("3 run files", r.stdout)
+        self.assertIn("2 run files", r.stdout)
 
     def test_a_changed_number_or_verdict_is_named(self):
         def trial(c):
             c["measures"][0]["trials"][1] *= 1 + 1e-15
         r = self.reports(self.edited(trial))
         self.assertEqual(r.returncode, 1, r.stdout)
-        self.assertIn("DIFFERS: S9.8 measure err", r.stdout)
+        self.assertIn("DIFFERS: chain_check measure err", r.stdout)
 
         def verdict(c):
             c["parts"][0]["verdict"] = "contradicted"
         r = self.reports(self.edited(verdict))
         self.assertEqual(r.returncode, 1, r.stdout)
-        self.assertIn("DIFFERS: S9.8.1 (held): supported here, contradicted there", r.stdout)
+        self.assertIn("DIFFERS: chain_check.1 (held): reproduced here, contradicted there", r.stdout)
 
     def test_a_timing_verdict_may_differ(self):
         def timing(c):
-            c["parts"][1]["verdict"] = "contradicted" if c["parts"][1]["verdict"] == "supported" else "supported"
-            c["measures"][3]["value"] = 123.0
+            c["parts"][1]["verdict"] = "other"
+            c["measures"][2]["value"] = 123.0
         r = self.reports(self.edited(timing))
         self.assertEqual(r.returncode, 0, r.stdout)
         self.assertIn("1 timing verdicts differ", r.stdout)
-        self.assertIn("timing part differs (wall clock, allowed): S9.8.2", r.stdout)
+        self.assertIn("timing part differs (wall clock, allowed): chain_check.2", r.stdout)
 
     def test_regress_results(self):
         d = self.dir
