@@ -125,27 +125,28 @@ slurmctld -f "$SLURM_CONF"
 started+=("$cluster/slurmctld.pid")
 slurmd -f "$SLURM_CONF" -N pbdnode
 started+=("$cluster/slurmd.pid")
+# (No `cmd | grep -q` or `| head` in this script: with pipefail, the writer's SIGPIPE fails it.)
 for _ in $(seq 60); do
-  sinfo -h -o %T 2>/dev/null | grep -q idle && break
+  [[ $(sinfo -h -o %T 2>/dev/null) == *idle* ]] && break
   sleep 1
 done
-sinfo -h -o %T | grep -q idle || { say "the node did not come up"; tail "$cluster"/log/*.log >&2; exit 1; }
+[[ $(sinfo -h -o %T 2>/dev/null) == *idle* ]] || { say "the node did not come up"; tail "$cluster"/log/*.log >&2; exit 1; }
 say "cluster up: $(sinfo -V), one node of $cpus cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')), ports $port_ctld/$port_d"
 
 # --- Helpers ---------------------------------------------------------------------------------
 now() { date +%s.%N; }
 elapsed() { /usr/bin/python3 -c "print(f'{$2 - $1:.1f}')"; }
-job_state() { scontrol show job "$1" 2>/dev/null | grep -o 'JobState=[A-Z_]*' | head -1 | cut -d= -f2; }
+job_state() { scontrol show job "$1" 2>/dev/null | awk 'match($0, /JobState=[A-Z_]+/) && !s { s = substr($0, RSTART + 9, RLENGTH - 9) } END { print s }'; }
 wait_job() {  # until the job (and, for an array, every task) has ended; prints its state
   local id=$1 state
   for _ in $(seq 1800); do
-    if ! squeue -h -j "$id" 2>/dev/null | grep -q .; then break; fi
+    [[ -z $(squeue -h -j "$id" 2>/dev/null) ]] && break
     sleep 1
   done
   state=$(job_state "$id")
   echo "${state:-UNKNOWN}"
 }
-submitted() { grep -o "$1 [0-9]*" "$2" | head -1 | awk '{print $NF}'; }
+submitted() { awk -v key="$1" 'i = index($0, key) { split(substr($0, i + length(key) + 1), w, /[^0-9]/); if (!n++) print w[1] }' "$2"; }
 failures=0
 summary=()
 check() {  # check NAME COMMAND...: counts a failure when the command fails
@@ -156,6 +157,13 @@ check() {  # check NAME COMMAND...: counts a failure when the command fails
   failures=$((failures + 1))
 }
 record() { summary+=("$*"); }
+compare() {  # compare OUT ARGS...: scripts/compare_results.py ARGS, its output to OUT and here
+  local out=$1 rc=0
+  shift
+  /usr/bin/python3 "$data/scripts/compare_results.py" "$@" >"$out" 2>&1 || rc=$?
+  cat "$out"
+  return $rc
+}
 
 # run_pair NAME CMD ARGS...: CMD ARGS locally (1 process) and as --slurm $shards; prints both times.
 run_pair() {
@@ -176,15 +184,15 @@ extra_local() { case $1 in paper|claims) echo "--runs $work/local/$1/runs" ;; es
 extra_slurm() { case $1 in paper|claims) echo "--runs $work/slurm/$1/runs" ;; esac; }
 
 # --- paper, claims: quick tiers ----------------------------------------------------------------
-data=$("$bin" list | head -1 | sed -e 's/^Scenarios (//' -e 's/)://' -e 's|/scenarios$||')
+data=$("$bin" list | sed -n -e '1s/^Scenarios (\(.*\)\/scenarios):$/\1/p')
 run_pair paper paper --tier quick
-check "paper: local and Slurm agree" /usr/bin/python3 "$data/scripts/compare_results.py" reports \
+check "paper: local and Slurm agree" compare "$work/paper.compare.txt" reports \
   "$work/local/paper/reproductions.json" "$work/slurm/paper/reproductions.json" "$data/reproductions/experiments" \
-  "$work/local/paper/runs" | tee "$work/paper.compare.txt"
+  "$work/local/paper/runs"
 run_pair claims claims --tier quick
-check "claims: local and Slurm agree" /usr/bin/python3 "$data/scripts/compare_results.py" reports \
+check "claims: local and Slurm agree" compare "$work/claims.compare.txt" reports \
   "$work/local/claims/claims.json" "$work/slurm/claims/claims.json" "$data/claims/experiments" \
-  "$work/local/claims/runs" | tee "$work/claims.compare.txt"
+  "$work/local/claims/runs"
 
 # --- the regression's quick tier, and a sweep --------------------------------------------------
 t0=$(now)
@@ -196,8 +204,8 @@ state=$(wait_job "$merge")
 t2=$(now)
 check "regress: the merge job $merge ended $state" test "$state" = COMPLETED
 record "$(printf '%-9s local %6ss   slurm %6ss (%s tasks and the merge, merge %s)' regress "$(elapsed "$t0" "$t1")" "$(elapsed "$t1" "$t2")" "$shards" "$state")"
-check "regress: local and Slurm agree" /usr/bin/python3 "$data/scripts/compare_results.py" regress \
-  "$work/local/regress/regress.json" "$work/slurm/regress/regress.json" "$data/regress/cases.toml" | tee "$work/regress.compare.txt"
+check "regress: local and Slurm agree" compare "$work/regress.compare.txt" regress \
+  "$work/local/regress/regress.json" "$work/slurm/regress/regress.json" "$data/regress/cases.toml"
 
 sweep=$data/studies/default/chain_iterations_vs_substeps.toml
 t0=$(now)
@@ -209,8 +217,7 @@ state=$(wait_job "$merge")
 t2=$(now)
 check "sweep: the merge job $merge ended $state" test "$state" = COMPLETED
 record "$(printf '%-9s local %6ss   slurm %6ss (%s tasks and the merge, merge %s)' sweep "$(elapsed "$t0" "$t1")" "$(elapsed "$t1" "$t2")" "$shards" "$state")"
-check "sweep: local and Slurm agree" /usr/bin/python3 "$data/scripts/compare_results.py" runs \
-  "$work/local/sweep" "$work/slurm/sweep" | tee "$work/sweep.compare.txt"
+check "sweep: local and Slurm agree" compare "$work/sweep.compare.txt" runs "$work/local/sweep" "$work/slurm/sweep"
 
 # --- A cancelled task: the merge fails naming it; resubmitting redoes only that shard -----------
 # The array is held (--slurm-opt=--hold, carried into both jobs and into submit.sh) so that task 1
@@ -238,13 +245,15 @@ state=$(wait_job "$merge2")
 after=$(find "$runs" -name '*.h5' | wc -l)
 check "cancel: the second merge writes the report (it ended $state)" test "$state" = COMPLETED -a -f "$work/cancel/report/README.md"
 record "cancel    task 1 of $shards cancelled: merge $merge FAILED naming shard 1; resubmitted shard 1 only ($before -> $after run files), merge $merge2 $state"
-check "cancel: the resubmitted report agrees with the local run" /usr/bin/python3 "$data/scripts/compare_results.py" reports \
+check "cancel: the resubmitted report agrees with the local run" compare "$work/cancel.compare.txt" reports \
   "$work/local/claims/claims.json" "$work/cancel/report/claims.json" "$data/claims/experiments" "$work/local/claims/runs" \
-  >"$work/cancel.compare.txt"
+  >/dev/null
 
 echo
 say "pbdbench $("$bin" --version) on $(sinfo -V), $cpus cores, $shards tasks per array:"
 for line in "${summary[@]}"; do echo "  $line"; done
-for f in paper claims regress sweep; do echo "  $f: $(head -1 "$work/$f.compare.txt")"; done
+for f in paper claims regress sweep cancel; do
+  if [[ -f $work/$f.compare.txt ]]; then echo "  $f: $(head -1 "$work/$f.compare.txt")"; fi
+done
 if [[ $failures -gt 0 ]]; then say "$failures check(s) failed; logs in $work"; exit 1; fi
 say "every check passed; logs in $work"
