@@ -165,20 +165,43 @@ compare() {  # compare OUT ARGS...: scripts/compare_results.py ARGS, its output 
   return $rc
 }
 
-# run_pair NAME CMD ARGS...: CMD ARGS locally (1 process) and as --slurm $shards; prints both times.
-run_pair() {
-  local name=$1
-  shift
-  local t0 t1 t2 t3 merge state
-  t0=$(now)
-  "$bin" "$@" --out "$work/local/$name" --no-plots $(extra_local "$name") >"$work/$name.local.log" 2>&1 || true
-  t1=$(now)
-  "$bin" "$@" --out "$work/slurm/$name" --no-plots $(extra_slurm "$name") --slurm "$shards" >"$work/$name.submit.log" 2>&1
-  merge=$(submitted "the merge, job" "$work/$name.submit.log")
-  state=$(wait_job "$merge")
+# submit NAME LOG CMD...: submits (CMD has --slurm); prints the merge job's id, or says why not.
+submit() {
+  local name=$1 log=$2
+  shift 2
+  if ! "$@" >"$log" 2>&1; then
+    say "FAILED: $name: the submission failed: $(tail -n 3 "$log" | tr '\n' ' ')" >&2
+    return 1
+  fi
+  submitted "the merge, job" "$log"
+}
+# local_run NAME LOG CMD...: the same command without Slurm; a refusal (exit 2) is a failure.
+local_run() {
+  local name=$1 log=$2 rc=0
+  shift 2
+  "$@" >"$log" 2>&1 || rc=$?
+  if [[ $rc -eq 2 ]]; then
+    say "FAILED: $name: the local run was refused: $(tail -n 3 "$log" | tr '\n' ' ')"
+    failures=$((failures + 1))
+  fi
+}
+# through_slurm NAME T0 T1 CMD...: submits CMD, waits for its merge, records the times.
+through_slurm() {
+  local name=$1 t0=$2 t1=$3 merge state=NOT_SUBMITTED t2
+  shift 3
+  if merge=$(submit "$name" "$work/$name.submit.log" "$@"); then state=$(wait_job "$merge"); fi
   t2=$(now)
-  check "$name: the merge job $merge ended $state" test "$state" = COMPLETED
+  check "$name: the merge job ${merge:-} ended $state" test "$state" = COMPLETED
   record "$(printf '%-9s local %6ss   slurm %6ss (%s tasks and the merge, merge %s)' "$name" "$(elapsed "$t0" "$t1")" "$(elapsed "$t1" "$t2")" "$shards" "$state")"
+}
+# run_pair NAME CMD ARGS...: CMD ARGS locally (1 process) and as --slurm $shards.
+run_pair() {
+  local name=$1 t0 t1
+  shift
+  t0=$(now)
+  local_run "$name" "$work/$name.local.log" "$bin" "$@" --out "$work/local/$name" --no-plots $(extra_local "$name")
+  t1=$(now)
+  through_slurm "$name" "$t0" "$t1" "$bin" "$@" --out "$work/slurm/$name" --no-plots $(extra_slurm "$name") --slurm "$shards"
 }
 extra_local() { case $1 in paper|claims) echo "--runs $work/local/$1/runs" ;; esac; }
 extra_slurm() { case $1 in paper|claims) echo "--runs $work/slurm/$1/runs" ;; esac; }
@@ -196,58 +219,51 @@ check "claims: local and Slurm agree" compare "$work/claims.compare.txt" reports
 
 # --- the regression's quick tier, and a sweep --------------------------------------------------
 t0=$(now)
-"$bin" regress --tier quick --no-plot --out "$work/local/regress" >"$work/regress.local.log" 2>&1 || true
+local_run regress "$work/regress.local.log" "$bin" regress --tier quick --no-plot --out "$work/local/regress"
 t1=$(now)
-"$bin" regress --tier quick --no-plot --out "$work/slurm/regress" --slurm "$shards" >"$work/regress.submit.log" 2>&1
-merge=$(submitted "the merge, job" "$work/regress.submit.log")
-state=$(wait_job "$merge")
-t2=$(now)
-check "regress: the merge job $merge ended $state" test "$state" = COMPLETED
-record "$(printf '%-9s local %6ss   slurm %6ss (%s tasks and the merge, merge %s)' regress "$(elapsed "$t0" "$t1")" "$(elapsed "$t1" "$t2")" "$shards" "$state")"
+through_slurm regress "$t0" "$t1" "$bin" regress --tier quick --no-plot --out "$work/slurm/regress" --slurm "$shards"
 check "regress: local and Slurm agree" compare "$work/regress.compare.txt" regress \
   "$work/local/regress/regress.json" "$work/slurm/regress/regress.json" "$data/regress/cases.toml"
 
 sweep=$data/studies/default/chain_iterations_vs_substeps.toml
 t0=$(now)
-"$bin" sweep "$sweep" --out "$work/local/sweep" --jobs 1 --quiet >"$work/sweep.local.log" 2>&1 || true
+local_run sweep "$work/sweep.local.log" "$bin" sweep "$sweep" --out "$work/local/sweep" --jobs 1 --quiet
 t1=$(now)
-"$bin" sweep "$sweep" --out "$work/slurm/sweep" --quiet --slurm "$shards" >"$work/sweep.submit.log" 2>&1
-merge=$(submitted "the merge, job" "$work/sweep.submit.log")
-state=$(wait_job "$merge")
-t2=$(now)
-check "sweep: the merge job $merge ended $state" test "$state" = COMPLETED
-record "$(printf '%-9s local %6ss   slurm %6ss (%s tasks and the merge, merge %s)' sweep "$(elapsed "$t0" "$t1")" "$(elapsed "$t1" "$t2")" "$shards" "$state")"
+through_slurm sweep "$t0" "$t1" "$bin" sweep "$sweep" --out "$work/slurm/sweep" --quiet --slurm "$shards"
 check "sweep: local and Slurm agree" compare "$work/sweep.compare.txt" runs "$work/local/sweep" "$work/slurm/sweep"
 
 # --- A cancelled task: the merge fails naming it; resubmitting redoes only that shard -----------
 # The array is held (--slurm-opt=--hold, carried into both jobs and into submit.sh) so that task 1
 # can be cancelled before it starts.
-runs=$work/cancel/runs
-"$bin" claims --tier quick --no-plots --runs "$runs" --out "$work/cancel/report" --slurm "$shards" \
-  --slurm-opt=--hold >"$work/cancel.submit.log" 2>&1
-array=$(submitted "submitted job array" "$work/cancel.submit.log")
-merge=$(submitted "the merge, job" "$work/cancel.submit.log")
-scancel "${array}_1"
-scontrol release "$array,$merge"
-state=$(wait_job "$merge")
-check "cancel: the merge fails when a task was cancelled (it ended $state)" test "$state" = FAILED
-log=$runs/slurm/claims-merge-$merge.log
-check "cancel: the merge names shard 1" grep -q "shard 1 of $shards" "$log"
-check "cancel: the merge says how to resubmit" grep -q "bash $runs/slurm/submit.sh" "$log"
-check "cancel: no report after a failed merge" test ! -e "$work/cancel/report/README.md"
-before=$(find "$runs" -name '*.h5' | wc -l)
-bash "$runs/slurm/submit.sh" >"$work/cancel.resubmit.log" 2>&1
-array2=$(submitted "submitted job array" "$work/cancel.resubmit.log")
-merge2=$(submitted "the merge, job" "$work/cancel.resubmit.log")
-check "cancel: resubmission runs shard 1 only" grep -q "(shards 1)" "$work/cancel.resubmit.log"
-scontrol release "$array2,$merge2"
-state=$(wait_job "$merge2")
-after=$(find "$runs" -name '*.h5' | wc -l)
-check "cancel: the second merge writes the report (it ended $state)" test "$state" = COMPLETED -a -f "$work/cancel/report/README.md"
-record "cancel    task 1 of $shards cancelled: merge $merge FAILED naming shard 1; resubmitted shard 1 only ($before -> $after run files), merge $merge2 $state"
-check "cancel: the resubmitted report agrees with the local run" compare "$work/cancel.compare.txt" reports \
-  "$work/local/claims/claims.json" "$work/cancel/report/claims.json" "$data/claims/experiments" "$work/local/claims/runs" \
-  >/dev/null
+cancel_check() {
+  local runs=$work/cancel/runs array merge array2 merge2 state log before after
+  submit cancel "$work/cancel.submit.log" "$bin" claims --tier quick --no-plots --runs "$runs" \
+    --out "$work/cancel/report" --slurm "$shards" --slurm-opt=--hold >/dev/null || return 1
+  array=$(submitted "submitted job array" "$work/cancel.submit.log")
+  merge=$(submitted "the merge, job" "$work/cancel.submit.log")
+  scancel "${array}_1"
+  scontrol release "$array,$merge"
+  state=$(wait_job "$merge")
+  check "cancel: the merge fails when a task was cancelled (it ended $state)" test "$state" = FAILED
+  log=$runs/slurm/claims-merge-$merge.log
+  check "cancel: the merge names shard 1" grep -q "shard 1 of $shards" "$log"
+  check "cancel: the merge says how to resubmit" grep -q "bash $runs/slurm/submit.sh" "$log"
+  check "cancel: no report after a failed merge" test ! -e "$work/cancel/report/README.md"
+  before=$(find "$runs" -name '*.h5' | wc -l)
+  submit cancel "$work/cancel.resubmit.log" bash "$runs/slurm/submit.sh" >/dev/null || return 1
+  array2=$(submitted "submitted job array" "$work/cancel.resubmit.log")
+  merge2=$(submitted "the merge, job" "$work/cancel.resubmit.log")
+  check "cancel: resubmission runs shard 1 only" grep -q "(shards 1)" "$work/cancel.resubmit.log"
+  scontrol release "$array2,$merge2"
+  state=$(wait_job "$merge2")
+  after=$(find "$runs" -name '*.h5' | wc -l)
+  check "cancel: the second merge writes the report (it ended $state)" test "$state" = COMPLETED -a -f "$work/cancel/report/README.md"
+  record "cancel    task 1 of $shards cancelled: merge $merge FAILED naming shard 1; resubmitted shard 1 only ($before -> $after run files), merge $merge2 $state"
+  check "cancel: the resubmitted report agrees with the local run" compare "$work/cancel.compare.txt" reports \
+    "$work/local/claims/claims.json" "$work/cancel/report/claims.json" "$data/claims/experiments" "$work/local/claims/runs" \
+    >/dev/null
+}
+cancel_check || failures=$((failures + 1))
 
 echo
 say "pbdbench $("$bin" --version) on $(sinfo -V), $cpus cores, $shards tasks per array:"

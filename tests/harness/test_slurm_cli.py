@@ -153,7 +153,9 @@ class SlurmCliTest(unittest.TestCase):
             a = json.load(f)["claims"][0]
         with open(os.path.join(self.dir, "report", "reproductions.json")) as f:
             b = json.load(f)["claims"][0]
-        self.assertEqual([p["verdict"] for p in a["parts"]], [p["verdict"] for p in b["parts"]])
+        # (A timing verdict may differ: its interval, from another moment of a shared machine.)
+        self.assertEqual([p["verdict"] for p in a["parts"] if not p["timing"]],
+                         [p["verdict"] for p in b["parts"] if not p["timing"]])
         err_a = next(m for m in a["measures"] if m["name"] == "err")
         err_b = next(m for m in b["measures"] if m["name"] == "err")
         self.assertEqual(err_a["trials"], err_b["trials"])
