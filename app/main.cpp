@@ -23,7 +23,6 @@
 #include <filesystem>
 #include <iostream>
 #include <limits>
-#include <thread>
 
 #include <fmt/format.h>
 

@@ -157,6 +157,10 @@ def main(argv):
     if len(argv) < 3 or argv[0] not in ("reports", "runs", "regress"):
         print(__doc__, file=sys.stderr)
         return 2
+    missing = [p for p in argv[1:] if not os.path.exists(p)]
+    if missing:  # the run that should have written it failed: say so, no traceback
+        print(f"compare_results: nothing to compare: {', '.join(missing)} not found")
+        return 1
     if argv[0] == "reports":
         problems = compare_reports(*argv[1:5])
     elif argv[0] == "runs":

@@ -134,6 +134,12 @@ class CompareResultsTest(unittest.TestCase):
         self.assertIn("1 timing verdicts differ", r.stdout)
         self.assertIn("timing part differs (wall clock, allowed): chain_check.2", r.stdout)
 
+    def test_a_missing_report_is_a_difference(self):
+        r = compare("reports", os.path.join(self.dir, "nothing.json"), os.path.join(self.dir, "b", "reproductions.json"),
+                    os.path.join(self.dir, "exp"), os.path.join(self.dir, "a", "runs"))
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        self.assertIn("nothing to compare: " + os.path.join(self.dir, "nothing.json") + " not found", r.stdout)
+
     def test_regress_results(self):
         d = self.dir
         registry = os.path.join(d, "cases.toml")
