@@ -27,14 +27,15 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The inverse masses of the run file's model (/model/inv_mass).
-std::vector<double> read_inv_mass(const fs::path& path) {
+// A one-dimensional dataset of the run file's model (/model/<name>) as doubles; empty when absent.
+std::vector<double> read_model_array(const fs::path& path, const char* name) {
   std::vector<double> out;
   try {
     H5::Exception::dontPrint();
     H5::H5File file(path.string(), H5F_ACC_RDONLY);
-    if (!file.nameExists("/model/inv_mass")) return out;
-    H5::DataSet ds = file.openDataSet("/model/inv_mass");
+    const std::string where = std::string("/model/") + name;
+    if (!file.nameExists(where)) return out;
+    H5::DataSet ds = file.openDataSet(where);
     out.resize(static_cast<size_t>(ds.getSpace().getSimpleExtentNpoints()));
     if (!out.empty()) ds.read(out.data(), H5::PredType::NATIVE_DOUBLE);
   } catch (const H5::Exception&) {
@@ -103,7 +104,14 @@ class RunScope final : public Scope {
     scalars_["steps_completed"] = number("steps_completed");
     scalars_["wall_time"] = number("wall_time");
     scalars_["dt"] = number("dt");
-    const std::vector<double> w = read_inv_mass(path);
+    const std::vector<double> w = read_model_array(path, "inv_mass");
+    const std::vector<double> kinds = read_model_array(path, "constraint_kind");
+    auto count_kind = [&](ConstraintKind k) {
+      return static_cast<double>(std::count(kinds.begin(), kinds.end(), static_cast<double>(k)));
+    };
+    scalars_["constraints_distance"] = count_kind(ConstraintKind::Distance);
+    scalars_["constraints_volume"] = count_kind(ConstraintKind::Volume);
+    scalars_["constraints_bending"] = count_kind(ConstraintKind::Bending);
     scalars_["particles"] = static_cast<double>(w.size());
     scalars_["inv_mass_max"] = w.empty() ? kNaN : *std::max_element(w.begin(), w.end());
     scalars_["inv_mass_min"] = w.empty() ? kNaN : *std::min_element(w.begin(), w.end());
@@ -177,10 +185,13 @@ std::vector<double> corner_values(const Expression& e, const std::vector<Measure
 // step (s) in that repeat.
 class RepeatScope final : public Scope {
  public:
-  RepeatScope(const TimingResult& t, size_t repeat) : t_(t), repeat_(repeat) {}
+  RepeatScope(const TimingResult& t, size_t repeat, const std::vector<MeasureResult>& measures)
+      : t_(t), repeat_(repeat), measures_(measures) {}
   std::optional<double> scalar(const std::string& name) const override {
     for (size_t k = 0; k < t_.runs.size(); ++k)
       if (t_.runs[k] == name) return t_.seconds_per_step[repeat_][k];
+    for (const MeasureResult& m : measures_)  // measures above it, as constants
+      if (m.name == name) return m.value;
     return std::nullopt;
   }
   const std::vector<double>* series(const std::string&) const override { return nullptr; }
@@ -189,6 +200,7 @@ class RepeatScope final : public Scope {
  private:
   const TimingResult& t_;
   size_t repeat_;
+  const std::vector<MeasureResult>& measures_;
 };
 
 double combine(const std::string& mode, std::vector<double> values) {
@@ -494,7 +506,7 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
     if (!m.timing.empty()) {
       const auto it = std::find_if(result.timings.begin(), result.timings.end(),
                                    [&](const TimingResult& t) { return t.group == m.timing; });
-      for (size_t r = 0; r < it->seconds_per_step.size(); ++r) mr.trials.push_back(m.value.evaluate(RepeatScope(*it, r)));
+      for (size_t r = 0; r < it->seconds_per_step.size(); ++r) mr.trials.push_back(m.value.evaluate(RepeatScope(*it, r, result.measures)));
       const bool any_nan = std::any_of(mr.trials.begin(), mr.trials.end(), [](double v) { return std::isnan(v); });
       const MedianInterval mi = median_interval(mr.trials);
       mr.interval = true;

@@ -165,7 +165,8 @@ const std::vector<std::string>& run_scalar_names() {
   static const std::vector<std::string> names = {
       "exploded",      "exploded_step", "exploded_time", "complete",       "failed",
       "steps_planned", "steps_completed", "wall_time",   "inv_mass_max",   "inv_mass_min",
-      "particles",     "dt",            "pinned_drift"};
+      "particles",     "dt",            "pinned_drift",  "constraints_distance", "constraints_volume",
+      "constraints_bending"};
   return names;
 }
 
@@ -419,18 +420,19 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
       if (!m.value.series_names().empty())
         fail(file, m.line, "measure.value", "a timing measure reads its group's runs by name, not series");
       for (const std::string& s : m.value.scalar_names())
-        if (std::find(timing->runs.begin(), timing->runs.end(), s) == timing->runs.end())
+        if (std::find(timing->runs.begin(), timing->runs.end(), s) == timing->runs.end() && !measure_names.count(s))
           fail(file, m.line, "measure.value",
-               "'" + s + "' is not a run of timing group '" + m.timing + "' (" +
-                   fmt::format("{}", fmt::join(timing->runs, ", ")) + ")");
+               "'" + s + "' is neither a run of timing group '" + m.timing + "' (" +
+                   fmt::format("{}", fmt::join(timing->runs, ", ")) + ") nor a measure defined above");
     } else if (!m.run.empty()) {
       if (ex.find_run(m.run) == nullptr)
         fail(file, m.line, "measure.run", "no run named '" + m.run + "'");
       for (const std::string& s : m.value.series_names())
-        if (s == "wall_step" || s.starts_with("time_"))
-          fail(file, m.line, "measure.value",
-               "'" + s + "' is a wall-clock series: costs are measured by a [[timing]] group "
-               "(repeated and interleaved), not from one run");
+        for (const SeriesSpec& spec : series_table())
+          if (spec.name == s && !spec.deterministic)
+            fail(file, m.line, "measure.value",
+                 "'" + s + "' is a wall-clock series: costs are measured by a [[timing]] group "
+                 "(repeated and interleaved), not from one run");
       const std::vector<std::string> used = m.value.scalar_names();
       if (std::find(used.begin(), used.end(), std::string("wall_time")) != used.end())
         fail(file, m.line, "measure.value",

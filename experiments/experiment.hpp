@@ -43,8 +43,9 @@
 //   doc = "fraction of trials still penetrating by more than 1 % of the radius"
 //   [[measure]]
 //   name = "cost_ratio"                # a measure of a timing group: `value` over the group's
-//   timing = "cost"                    #   runs' solver time per step (s) in one repeat; its value
-//   value = "global_cg / sequential"   #   is the median over the repeats, with a 95 % interval
+//   timing = "cost"                    #   runs' solver time per step (s) in one repeat (and the
+//   value = "global_cg / sequential"   #   measures above it, as constants); its value is the
+//                                      #   median over the repeats, with a 95 % interval
 //   [[measure]]
 //   name = "gain"                      # a measure without `run` or `timing` is computed from
 //   value = "rate_sequential - rate_shuffled"   # earlier measures (intervals carried through)
@@ -260,6 +261,8 @@ std::filesystem::path reproductions_dir();
 //   particles, inv_mass_max, inv_mass_min  of the run's model (1/kg)
 //   pinned_drift  m, the largest distance a particle with inverse mass 0 moved from its place in
 //                 the first frame, over the written frames (kinematic particles move by design)
+//   constraints_distance, constraints_volume, constraints_bending  the model's constraints of
+//                 each kind
 std::vector<std::string> run_series_names();
 const std::vector<std::string>& run_scalar_names();
 

@@ -211,7 +211,7 @@ TEST(Experiment, BadFilesAreRefusedNamingFileLineAndKey) {
        "timing.runs: no run named 'pdb'"},
       {"[[measure]]\nname = \"twice\"",
        "[[timing]]\nname = \"t\"\nruns = [\"pbd\"]\n[[measure]]\nname = \"c\"\ntiming = \"t\"\nvalue = \"xpbd\"\ndoc = \"d\"\n[[measure]]\nname = \"twice\"",
-       "'xpbd' is not a run of timing group 't'"},
+       "'xpbd' is neither a run of timing group 't'"},
       // One fault, one verdict: a part judging the method may not read the listing unrepaired.
       {"set = { \"solver.name\" = \"pbd\" }", "set = { \"solver.name\" = \"pbd-seed\", \"solver.seed.fixes\" = [\"D1\", \"D3\"] }",
        "judges the method but reads run 'pbd', the listing without the fixes D4, D5, D6, D7, D8, D9"},
