@@ -117,7 +117,8 @@ struct Override {
 // Parses "path=value"; throws ConfigError (file "--set ...") when there is no '='.
 Override parse_override(const std::string& text);
 
-// Where scenario names are looked up: $PBDBENCH_SCENARIOS when set, else <source dir>/scenarios.
+// Where scenario names are looked up: $PBDBENCH_SCENARIOS when set, else data_dir()/scenarios
+// (config/data_dir.hpp).
 std::filesystem::path scenarios_dir();
 
 // A path to an existing file, or a catalog name ("hanging_cloth" -> scenarios/hanging_cloth.toml).
