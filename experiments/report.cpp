@@ -317,7 +317,7 @@ std::string part_counts_line(const std::vector<ClaimResult>& results) {
                        pc.article[static_cast<int>(Verdict::Identity)] == 1 ? "identity" : "identities");
   }
   std::string out = fmt::format(
-      "{} parts in the article's regime: {}", article,
+      "{} {} in the article's regime: {}", article, article == 1 ? "part" : "parts",
       counts_phrase(pc.article, kind,
                     {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive, Verdict::NotTestable}));
   if (beyond > 0)
@@ -337,7 +337,8 @@ std::string experiment_counts_line(const std::vector<ClaimResult>& results) {
                                 Verdict::NotTestable};
   if (kind == ExperimentKind::Reproduction) order.push_back(Verdict::SetupUnknown);
   return fmt::format("{} {}, each from its decided parts in {} regime: {}", results.size(),
-                     kind == ExperimentKind::Claim ? "claims with an experiment" : "experiments",
+                     kind == ExperimentKind::Claim ? (results.size() == 1 ? "claim with an experiment" : "claims with an experiment")
+                                                   : (results.size() == 1 ? "experiment" : "experiments"),
                      kind == ExperimentKind::Claim ? "the article's" : "the paper's", counts_phrase(counts, kind, order));
 }
 
@@ -379,8 +380,8 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
   if (ctx.index != nullptr) {
     int untestable = 0;
     for (const IndexedClaim& c : ctx.index->claims) untestable += !c.untestable.empty();
-    md << fmt::format("The index holds {} claims: {} have an experiment, {} are not testable here (listed at the "
-                      "end with their reasons).\n\n",
+    md << fmt::format("The index holds {} claims: {} with an experiment, {} not testable here (listed at the end "
+                      "with their reasons).\n\n",
                       ctx.index->claims.size(), ctx.index->claims.size() - untestable, untestable);
   }
 
