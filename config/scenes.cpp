@@ -307,6 +307,26 @@ class SceneBuilder {
     velocity_ = vec(m_, "scene.velocity");
   }
 
+  // scene.fixed of a box (tet_block) or rectangle (tri_block) spanning `extent` from `origin`:
+  // the particles of r on that face or edge are pinned, those on the opposite one are the tip (a
+  // beam's free end, Model::observables).
+  void fix_side(const Vec3& origin, const Vec3& extent, const ParticleRange& r) {
+    std::vector<int> pins;
+    const std::string& side = word(m_, "scene.fixed");
+    if (side != "none") {
+      const int axis = side[0] - 'x';
+      const bool at_max = side.substr(2) == "max";
+      const double target = origin[axis] + (at_max ? extent[axis] : 0.0);
+      const double opposite = origin[axis] + (at_max ? 0.0 : extent[axis]);
+      const double tolerance = 1e-9 * extent.maxCoeff();  // the generators' vertices are exact up to rounding
+      for (int p = r.begin; p < r.end; ++p) {
+        if (std::abs(model_.rest_positions(p, axis) - target) <= tolerance) pins.push_back(p);
+        if (std::abs(model_.rest_positions(p, axis) - opposite) <= tolerance) model_.observables.tip.push_back(p);
+      }
+    }
+    pin(pins);
+  }
+
   void tet_block() {
     const auto& cells = c_.get_ints("scene.cells");
     TetBlockSpec s;
@@ -328,22 +348,7 @@ class SceneBuilder {
     const ParticleRange r = add_tet_block(model_, s);
     add_material(first_tet, "the tet_block scene");
 
-    // The fixed face is pinned; the particles of the opposite face are the tip (a beam's free
-    // end, Model::observables).
-    std::vector<int> pins;
-    const std::string& face = word(m_, "scene.fixed");
-    if (face != "none") {
-      const int axis = face[0] - 'x';
-      const bool at_max = face.substr(2) == "max";
-      const double target = s.origin[axis] + (at_max ? s.size[axis] : 0.0);
-      const double opposite = s.origin[axis] + (at_max ? 0.0 : s.size[axis]);
-      const double tolerance = 1e-9 * s.size.maxCoeff();  // the generator's vertices are exact up to rounding
-      for (int p = r.begin; p < r.end; ++p) {
-        if (std::abs(model_.rest_positions(p, axis) - target) <= tolerance) pins.push_back(p);
-        if (std::abs(model_.rest_positions(p, axis) - opposite) <= tolerance) model_.observables.tip.push_back(p);
-      }
-    }
-    pin(pins);
+    fix_side(s.origin, s.size, r);
     velocity_ = vec(m_, "scene.velocity");
   }
 
@@ -472,21 +477,7 @@ class SceneBuilder {
                                              e.what()));
       }
     }
-    // The fixed edge is pinned; the particles of the opposite edge are the tip.
-    std::vector<int> pins;
-    const std::string& edge = word(m_, "scene.fixed");
-    if (edge != "none") {
-      const int axis = edge[0] - 'x';
-      const bool at_max = edge.substr(2) == "max";
-      const double target = s.origin[axis] + (at_max ? s.size[static_cast<size_t>(axis)] : 0.0);
-      const double opposite = s.origin[axis] + (at_max ? 0.0 : s.size[static_cast<size_t>(axis)]);
-      const double tolerance = 1e-9 * std::max(s.size[0], s.size[1]);
-      for (int p = r.begin; p < r.end; ++p) {
-        if (std::abs(model_.rest_positions(p, axis) - target) <= tolerance) pins.push_back(p);
-        if (std::abs(model_.rest_positions(p, axis) - opposite) <= tolerance) model_.observables.tip.push_back(p);
-      }
-    }
-    pin(pins);
+    fix_side(s.origin, Vec3(s.size[0], s.size[1], 0.0), r);
     velocity_ = vec(m_, "scene.velocity");
   }
 

@@ -125,9 +125,19 @@ std::vector<KeySpec> group_keys(const std::string& prefix, const std::string& wh
   };
 }
 
+// Young's modulus (default `youngs_modulus` Pa) and Poisson's ratio of an FEM material.
+std::vector<KeySpec> modulus_keys(double youngs_modulus) {
+  return {
+      real("scene.youngs_modulus", youngs_modulus, "Pa", above(0),
+           "Young's modulus E of the material (used when scene.material is not none)"),
+      real("scene.poisson_ratio", 0.3, "1", within(0, 0.499),
+           "Poisson's ratio nu of the material (used when scene.material is not none)"),
+  };
+}
+
 // The FEM material keys of a tet body (core/fem.hpp, fem::add_fem_elements).
 std::vector<KeySpec> fem_keys(const std::string& what) {
-  return {
+  std::vector<KeySpec> keys = {
       text("scene.material", "none", {"none", "stable_neo_hookean", "corotated", "stvk", "linear"},
            what + ": a hyperelastic FEM element per tet (core/fem.hpp): stable_neo_hookean (xpbd "
            "simulates it as two constraints per tet, Macklin and Mueller 2021), stvk (St Venant-"
@@ -136,11 +146,9 @@ std::vector<KeySpec> fem_keys(const std::string& what) {
            "constraint per tet with the compliance matrix of Macklin et al. 2016, sec. 6.3, "
            "corotated (reference solvers only), or none; pbd and pbd-seed refuse them all; needs "
            "positively oriented tets"),
-      real("scene.youngs_modulus", 1e6, "Pa", above(0),
-           "Young's modulus E of the material (used when scene.material is not none)"),
-      real("scene.poisson_ratio", 0.3, "1", within(0, 0.499),
-           "Poisson's ratio nu of the material (used when scene.material is not none)"),
   };
+  append(keys, modulus_keys(1e6));
+  return keys;
 }
 
 const std::vector<std::string> kMotionSuffixes = {"",       "_velocity",  "_amplitude", "_axis",
@@ -357,11 +365,8 @@ SceneKindInfo tri_block_kind() {
            "a St Venant-Kirchhoff FEM element per triangle (core/fem.hpp: the 2 x 2 Green strain, "
            "plane strain in the plane), which xpbd simulates as one strain-vector constraint per "
            "triangle with the compliance matrix of Macklin et al. 2016, eqs. 27 and 28; or none"),
-      real("scene.youngs_modulus", 1e5, "Pa", above(0),
-           "Young's modulus E of the material (used when scene.material is not none)"),
-      real("scene.poisson_ratio", 0.3, "1", within(0, 0.499),
-           "Poisson's ratio nu of the material (used when scene.material is not none)"),
   };
+  append(keys, modulus_keys(1e5));
   append(keys, group_keys("scene.edge", "edge constraints", "m/N", ConstraintParams{1e-6, 1.0, 0.0}));
   keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kAny,
                       "initial velocity of the free particles"));

@@ -48,6 +48,43 @@ Mat3 edge_matrix(const Points& x, const std::array<int, 4>& p) {
   return D;
 }
 
+// Young's modulus above 0 and finite, Poisson's ratio in (-1, 0.5), else std::invalid_argument.
+void require_moduli(double youngs_modulus, double poisson_ratio) {
+  if (!(youngs_modulus > 0.0) || !std::isfinite(youngs_modulus))
+    throw std::invalid_argument("youngs_modulus = " + format_number(youngs_modulus, kShortDigits) +
+                                " Pa must be finite and above 0");
+  if (!(poisson_ratio > -1.0 && poisson_ratio < 0.5))
+    throw std::invalid_argument("poisson_ratio = " + format_number(poisson_ratio, kShortDigits) +
+                                " must be in (-1, 0.5)");
+}
+
+// Every index of an element in [0, n), else std::invalid_argument naming the element.
+template <size_t K>
+void require_in_range(const std::string& name, const std::array<int, K>& t, int n) {
+  for (int p : t)
+    if (p < 0 || p >= n)
+      throw std::invalid_argument(name + ": particle index " + std::to_string(p) +
+                                  " is out of range (the model has " + std::to_string(n) +
+                                  " particles)");
+}
+
+// One strain-vector constraint of `kind` (group "fem_strain") per element, elements[k] being
+// model.elements[first + k]; the scalar compliance records the matrix's deviatoric entry.
+void add_strain_constraints(Model& model, ConstraintKind kind, const std::vector<FemElement>& elements,
+                            int first) {
+  const std::uint16_t group = model.group_index("fem_strain");
+  for (size_t k = 0; k < elements.size(); ++k) {
+    Constraint c;
+    c.kind = kind;
+    c.particles = elements[k].particles;
+    c.rest = 0.0;
+    c.compliance = 1.0 / (2.0 * elements[k].mu * elements[k].rest_volume);
+    c.group = group;
+    c.element = first + static_cast<int>(k);
+    model.constraints.push_back(c);
+  }
+}
+
 }  // namespace
 
 Lame lame(double youngs_modulus, double poisson_ratio) {
@@ -209,12 +246,7 @@ bool xpbd_strain_update(const StrainEval& e, const std::array<double, 4>& w,
 
 void add_fem_elements(Model& model, const std::vector<std::array<int, 4>>& tets, Material material,
                       double youngs_modulus, double poisson_ratio) {
-  if (!(youngs_modulus > 0.0) || !std::isfinite(youngs_modulus))
-    throw std::invalid_argument("youngs_modulus = " + format_number(youngs_modulus, kShortDigits) +
-                                " Pa must be finite and above 0");
-  if (!(poisson_ratio > -1.0 && poisson_ratio < 0.5))
-    throw std::invalid_argument("poisson_ratio = " + format_number(poisson_ratio, kShortDigits) +
-                                " must be in (-1, 0.5)");
+  require_moduli(youngs_modulus, poisson_ratio);
   const Lame moduli = lame(youngs_modulus, poisson_ratio);
   const int n = model.particle_count();
   const char* material_name = to_string(material);
@@ -225,11 +257,7 @@ void add_fem_elements(Model& model, const std::vector<std::array<int, 4>>& tets,
   for (size_t k = 0; k < tets.size(); ++k) {
     const auto& t = tets[k];
     const std::string name = "tet " + std::to_string(k) + " (particles " + index_list(t, 4) + ")";
-    for (int p : t)
-      if (p < 0 || p >= n)
-        throw std::invalid_argument(name + ": particle index " + std::to_string(p) +
-                                    " is out of range (the model has " + std::to_string(n) +
-                                    " particles)");
+    require_in_range(name, t, n);
     const Mat3 Dm = edge_matrix(model.rest_positions, t);
     const double volume = Dm.determinant() / 6.0;
     // Degenerate as core/model_checks.cpp: |V| <= 1e-9 (longest edge)^3, scale-free.
@@ -260,17 +288,7 @@ void add_fem_elements(Model& model, const std::vector<std::array<int, 4>>& tets,
   if (material == Material::StVK || material == Material::Linear) {
     // Macklin et al. 2016, sec. 6.3: one strain-vector constraint per element, its compliance
     // matrix from the element (strain_compliance); the scalar compliance is its deviatoric entry.
-    const std::uint16_t group = model.group_index("fem_strain");
-    for (size_t k = 0; k < elements.size(); ++k) {
-      Constraint c;
-      c.kind = ConstraintKind::FemStrainTet;
-      c.particles = elements[k].particles;
-      c.rest = 0.0;
-      c.compliance = 1.0 / (2.0 * elements[k].mu * elements[k].rest_volume);
-      c.group = group;
-      c.element = first + static_cast<int>(k);
-      model.constraints.push_back(c);
-    }
+    add_strain_constraints(model, ConstraintKind::FemStrainTet, elements, first);
     return;
   }
 
@@ -309,12 +327,7 @@ void add_fem_triangles(Model& model, const std::vector<std::array<int, 3>>& tria
   if (material != Material::StVK)
     throw std::invalid_argument(std::string("a triangle element of material ") + to_string(material) +
                                 ": only stvk has triangles");
-  if (!(youngs_modulus > 0.0) || !std::isfinite(youngs_modulus))
-    throw std::invalid_argument("youngs_modulus = " + format_number(youngs_modulus, kShortDigits) +
-                                " Pa must be finite and above 0");
-  if (!(poisson_ratio > -1.0 && poisson_ratio < 0.5))
-    throw std::invalid_argument("poisson_ratio = " + format_number(poisson_ratio, kShortDigits) +
-                                " must be in (-1, 0.5)");
+  require_moduli(youngs_modulus, poisson_ratio);
   if (!(thickness > 0.0) || !std::isfinite(thickness))
     throw std::invalid_argument("thickness = " + format_number(thickness, kShortDigits) +
                                 " m must be finite and above 0");
@@ -325,11 +338,7 @@ void add_fem_triangles(Model& model, const std::vector<std::array<int, 3>>& tria
   for (size_t k = 0; k < triangles.size(); ++k) {
     const auto& t = triangles[k];
     const std::string name = "triangle " + std::to_string(k) + " (particles " + index_list(t, 3) + ")";
-    for (int p : t)
-      if (p < 0 || p >= n)
-        throw std::invalid_argument(name + ": particle index " + std::to_string(p) +
-                                    " is out of range (the model has " + std::to_string(n) +
-                                    " particles)");
+    require_in_range(name, t, n);
     const Vec3 x0 = model.rest_positions.row(t[0]);
     const Vec3 e1 = Vec3(model.rest_positions.row(t[1])) - x0;
     const Vec3 e2 = Vec3(model.rest_positions.row(t[2])) - x0;
@@ -358,18 +367,8 @@ void add_fem_triangles(Model& model, const std::vector<std::array<int, 3>>& tria
     elements.push_back(e);
   }
   const int first = static_cast<int>(model.elements.size());
-  const std::uint16_t group = model.group_index("fem_strain");
-  for (size_t k = 0; k < elements.size(); ++k) {
-    model.elements.push_back(elements[k]);
-    Constraint c;
-    c.kind = ConstraintKind::FemStrainTriangle;
-    c.particles = elements[k].particles;
-    c.rest = 0.0;
-    c.compliance = 1.0 / (2.0 * elements[k].mu * elements[k].rest_volume);
-    c.group = group;
-    c.element = first + static_cast<int>(k);
-    model.constraints.push_back(c);
-  }
+  for (const FemElement& e : elements) model.elements.push_back(e);
+  add_strain_constraints(model, ConstraintKind::FemStrainTriangle, elements, first);
 }
 
 }  // namespace pbdbench::fem
