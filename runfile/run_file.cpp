@@ -3,21 +3,25 @@
 // Crash safety. The HDF5 library updates a file's metadata (object headers, chunk B-trees, the
 // superblock's end-of-file address) in place, several separate writes per flush, so a process
 // killed during a flush, or after the metadata cache evicted an entry between flushes, can leave a
-// file that no reader opens. The latest file format (superblock version 3, which SWMR writing
-// needs) is worse after a crash: the superblock keeps "open for writing" flags that make every
-// plain (non-SWMR) open fail until an external tool clears them. tests/runfile/kill_test.py
-// measures all of this; results/README.md has the numbers.
+// file that no reader opens or whose series disagree. The latest file format (superblock version
+// 3, which SWMR writing needs) is worse after a crash: the superblock keeps "open for writing"
+// flags that make every plain (non-SWMR) open fail until an external tool clears them.
+// tests/runfile/kill_test.py measures all of this; results/README.md has the numbers.
 //
-// So this writer never lets the library write to the published file. The file is built in
-// memory (the core driver, no backing store, default file format); publishing it flushes the
-// library's caches, copies the complete image, writes it to "<path>.tmp" and renames that over
-// <path>. rename() is atomic: at any moment <path> is either the previous complete image or the
-// new one, both valid files with status "incomplete" until finish() publishes the last one.
-// A side benefit: the writer holds no HDF5 lock on <path>, so readers may open it while the run
-// is still going.
+// So this writer never lets the library write to the published file. The library writes in
+// place into a working copy, "<path>.shadow", through a file driver of our own
+// (runfile/shadow_file.hpp); publishing flushes the library's caches and renames the working
+// copy over <path>, then brings the previous image up to date with the bytes written since and
+// makes it the next working copy. rename() is atomic: at any moment <path> is either the
+// previous complete image or the new one, both valid files with status "incomplete" until
+// finish() publishes the last one. Memory does not grow with the run (rows are buffered up to
+// kMaxPendingRows), and a publish writes what changed, never the whole file. The writer holds
+// an exclusive lock on "<path>.lock" for the run's life (runfile/output_guard.hpp) and no HDF5
+// lock on <path>, so readers may open it while the run is still going.
 #include "runfile/run_file.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <H5Cpp.h>
@@ -32,6 +36,8 @@
 #include <stdexcept>
 
 #include "runfile/build_info.hpp"
+#include "runfile/output_guard.hpp"
+#include "runfile/shadow_file.hpp"
 
 namespace pbdbench {
 
@@ -57,9 +63,11 @@ using Clock = std::chrono::steady_clock;
 constexpr long long kFormatVersion = 1;
 constexpr hsize_t kChunkRows = 256;  // rows per chunk of a series dataset
 constexpr int kGzipLevel = 4;        // frames/positions
-// Publishing copies the whole file; it is spaced so that it takes at most about 1/kPublishShare
-// of the wall time even when the file grows large.
+// Publishing copies what changed since the last publish; it is spaced so that it takes at most
+// about 1/kPublishShare of the wall time.
 constexpr double kPublishShare = 20.0;
+// Rows buffered in memory before they are written into the working copy (not yet published).
+constexpr size_t kMaxPendingRows = 4096;
 
 [[noreturn]] void fail(const std::filesystem::path& path, const std::string& what) {
   throw std::runtime_error("run file " + path.string() + ": " + what);
@@ -265,48 +273,6 @@ void append_rows(H5::DataSet& ds, hsize_t& rows, hsize_t count,
 }
 
 // Writes all of `data` to a new file `tmp`, then renames it over `path`.
-void replace_file(const std::filesystem::path& path, const std::vector<char>& data, bool durable) {
-  const std::string tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail(path, "cannot create " + tmp + ": " + std::strerror(errno));
-  size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t w = ::write(fd, data.data() + done, data.size() - done);
-    if (w < 0 && errno == EINTR) continue;
-    if (w <= 0) {
-      const int err = w < 0 ? errno : ENOSPC;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      fail(path, "cannot write " + tmp + ": " + std::strerror(err));
-    }
-    done += static_cast<size_t>(w);
-  }
-  if (durable && ::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    fail(path, "cannot sync " + tmp + ": " + std::strerror(err));
-  }
-  if (::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    fail(path, "cannot close " + tmp + ": " + std::strerror(err));
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    fail(path, "cannot rename " + tmp + " to it: " + std::strerror(err));
-  }
-  if (durable) {  // the rename itself: sync the directory
-    const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
-    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dfd >= 0) {
-      ::fsync(dfd);
-      ::close(dfd);
-    }
-  }
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -331,7 +297,8 @@ struct RunFileWriter::Impl {
   Clock::time_point started = Clock::now();
   Clock::time_point last_publish = Clock::now();
   double last_publish_cost = 0.0;  // s
-  std::vector<char> image;         // reused between publications
+  std::optional<OutputLock> lock;  // one writer per path, for the writer's life
+  bool broken = false;             // a publish failed half-way: the working copy is gone
 
   void write_pending() {
     if (pending_rows == 0) return;
@@ -348,19 +315,20 @@ struct RunFileWriter::Impl {
 
   double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
 
-  // Writes the buffered rows, flushes the library and replaces the file on disk with the image.
+  // Writes the buffered rows, flushes the library and publishes the working copy at `path`.
   void publish(bool durable) {
+    if (broken) fail(path, "an earlier publish failed: the file stays as it was then");
     const Clock::time_point t0 = Clock::now();
     write_pending();
     set_attr(*file, "steps_completed", static_cast<long long>(last_step));
     if (!durable) set_attr(*file, "wall_time", elapsed());
     file->flush(H5F_SCOPE_GLOBAL);
-    const ssize_t size = H5Fget_file_image(file->getId(), nullptr, 0);
-    if (size <= 0) fail(path, "cannot get the file image from the HDF5 library");
-    image.resize(static_cast<size_t>(size));
-    if (H5Fget_file_image(file->getId(), image.data(), image.size()) != size)
-      fail(path, "cannot copy the file image from the HDF5 library");
-    replace_file(path, image, durable);
+    try {
+      shadow_publish(file->getId(), path, durable);
+    } catch (...) {
+      broken = true;
+      throw;
+    }
     dirty = false;
     last_publish = Clock::now();
     last_publish_cost = std::chrono::duration<double>(last_publish - t0).count();
@@ -371,12 +339,20 @@ struct RunFileWriter::Impl {
     if (since >= std::max(flush_every, kPublishShare * last_publish_cost)) publish(false);
   }
 
+  // Closes the library's file and removes the working copy; the lock goes last.
   void close() {
+    closed = true;
     series.clear();
     frame_time.reset();
     frame_positions.reset();
-    file.reset();
-    closed = true;
+    try {
+      file.reset();
+    } catch (...) {
+      // The published file is what counts; the working copy is removed below.
+    }
+    std::error_code ec;
+    std::filesystem::remove(shadow_path(path), ec);
+    lock.reset();
   }
 };
 
@@ -390,16 +366,25 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
   w.groups = model.group_names.size();
   H5::Exception::dontPrint();
 
-  // A file left at this path by an earlier run must not survive under this run's name.
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory");
-  std::filesystem::remove(path, ec);
-  if (ec) fail(path, "cannot remove the existing file: " + ec.message());
+  // One writer per path; only a run file may be replaced (checked under the lock).
+  w.lock.emplace(path);
+  check_output_path(path, header.scenario_file);
+  const std::filesystem::path shadow = shadow_path(path);
+  for (const std::filesystem::path& leftover : {shadow, std::filesystem::path(path.string() + ".previous")}) {
+    // A killed writer's working copy: ours to remove, but only if it is a plain file.
+    struct stat st {};
+    if (::lstat(leftover.c_str(), &st) != 0) continue;
+    if (!S_ISREG(st.st_mode))
+      throw OutputRefused("--out " + path.string() + ": " + leftover.string() +
+                          " is in the way and is not a regular file: nothing was written");
+    ::unlink(leftover.c_str());
+  }
 
   try {
     H5::FileAccPropList fapl;
-    fapl.setCore(1 << 20, false);  // in memory only; publish() writes the image
-    w.file.emplace(path.string(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, fapl);
+    if (H5Pset_driver(fapl.getId(), shadow_driver(), nullptr) < 0)
+      fail(path, "cannot select the run file's HDF5 driver");
+    w.file.emplace(shadow.string(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, fapl);
     H5::H5File& file = *w.file;
 
     // Root attributes.
@@ -522,6 +507,7 @@ void RunFileWriter::append(const SeriesRow& row) {
   w.last_step = row.step;
   w.dirty = true;
   try {
+    if (w.pending_rows >= kMaxPendingRows) w.write_pending();  // into the working copy
     w.maybe_publish();
   } catch (const H5::Exception& e) {
     fail(w.path, "cannot write series: " + h5_message(e));
