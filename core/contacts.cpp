@@ -1,6 +1,8 @@
 #include "core/contacts.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 #include <cmath>
 #include <cstdint>
 #include <utility>
@@ -15,6 +17,14 @@ const char* to_string(ContactKind kind) {
   }
   return "unknown";
 }
+
+namespace {
+
+// Equal spheres touch at most 12 neighbours; this many overlapping pairs per particle means the
+// particles have collapsed onto each other (their number would grow with its square).
+constexpr size_t kMaxPairsPerParticle = 64;
+
+}  // namespace
 
 namespace {
 
@@ -83,6 +93,12 @@ void find_particle_pairs(const Model& model, const Points& x, double margin,
             if (std::binary_search(excluded.begin(), excluded.end(), std::make_pair(a, b)))
               continue;
             pairs.push_back({ContactKind::Particle, a, b});
+            if (pairs.size() > kMaxPairsPerParticle * static_cast<size_t>(n) + 1024)
+              throw std::runtime_error(
+                  "particle contacts: more than " + std::to_string(kMaxPairsPerParticle) +
+                  " overlapping pairs per particle (" + std::to_string(n) +
+                  " particles): they have collapsed onto each other; the run stops before its "
+                  "memory grows with the square of their count");
           }
         }
   }
