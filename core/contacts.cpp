@@ -22,7 +22,9 @@ namespace {
 
 // Equal spheres touch at most 12 neighbours; this many overlapping pairs per particle means the
 // particles have collapsed onto each other (their number would grow with its square).
+// A million pairs (12 MB) are always allowed, so that small dense clouds are never refused.
 constexpr size_t kMaxPairsPerParticle = 64;
+constexpr size_t kPairSlack = 1000000;
 
 }  // namespace
 
@@ -93,7 +95,7 @@ void find_particle_pairs(const Model& model, const Points& x, double margin,
             if (std::binary_search(excluded.begin(), excluded.end(), std::make_pair(a, b)))
               continue;
             pairs.push_back({ContactKind::Particle, a, b});
-            if (pairs.size() > kMaxPairsPerParticle * static_cast<size_t>(n) + 1024)
+            if (pairs.size() > kMaxPairsPerParticle * static_cast<size_t>(n) + kPairSlack)
               throw std::runtime_error(
                   "particle contacts: more than " + std::to_string(kMaxPairsPerParticle) +
                   " overlapping pairs per particle (" + std::to_string(n) +
