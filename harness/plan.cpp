@@ -18,11 +18,12 @@ namespace pbdbench {
 
 namespace {
 
-// Costs (measured on the development machine, 2-core AMD EPYC, Release; see results/README.md,
-// "The planned run"), rounded up: they are for refusing the impossible, not for predictions.
-constexpr double kProjectionSeconds = 1e-7;   // one constraint or contact projected once
+// Costs (measured on the development machine, 2-core AMD EPYC, Release, while loaded; see
+// results/README.md, "The planned run"), rounded up: they are for refusing the impossible, not
+// for predictions.
+constexpr double kProjectionSeconds = 2e-7;   // one constraint or contact projected once
 constexpr double kParticleSeconds = 1e-6;     // one particle, one step: prediction, metrics
-constexpr double kRowSeconds = 5e-5;          // one row: metrics and the writer
+constexpr double kRowSeconds = 1e-4;          // one row: metrics and the writer
 constexpr double kReferenceSeconds = 2e-4;    // one constraint or particle, one reference step
 constexpr double kParticleBytes = 2048;       // state, work arrays, metrics, per particle
 constexpr double kConstraintBytes = 512;      // constraint, ordering, multipliers

@@ -358,8 +358,11 @@ TEST(MeshIo, ReorientFixesANegativeTet) {
     EXPECT_GT(tet_signed_volume(m.rest_positions.row(t[0]), m.rest_positions.row(t[1]),
                                 m.rest_positions.row(t[2]), m.rest_positions.row(t[3])), 0.0);
   EXPECT_EQ(m.tets[0], (std::array<int, 4>{0, 2, 3, 1}));  // two vertices swapped
-  for (const Constraint& c : m.constraints)
-    if (c.kind == ConstraintKind::Volume) EXPECT_TRUE(test::near(c.rest, 1.0 / 6, test::kRoundoff));
+  for (const Constraint& c : m.constraints) {
+    if (c.kind == ConstraintKind::Volume) {
+      EXPECT_TRUE(test::near(c.rest, 1.0 / 6, test::kRoundoff));
+    }
+  }
   expect_satisfied_at_rest(m);
   // Masses use |V|: 1/24 of the density per tet vertex.
   EXPECT_TRUE(test::near(1.0 / m.inv_mass[0], 2 * 1000.0 / 24, test::kRoundoff));

@@ -14,7 +14,7 @@ import subprocess
 import sys
 import tempfile
 
-BOUND_MB = 100.0      # results/README.md, "Memory and disk"
+BOUND_MB = 64.0       # results/README.md, "Memory and disk"
 MARGIN_MB = 8.0       # what the longer run may use beyond the shorter one (allocator noise)
 
 
