@@ -8,9 +8,15 @@
 
 #include <fmt/format.h>
 
+
+#include "experiments/claim_index.hpp"
 #include "experiments/evaluate.hpp"
+#include "experiments/registry.hpp"
 #include "experiments/report.hpp"
+#include "experiments/sha256.hpp"
+#include "experiments/timing.hpp"
 #include "harness/sweep.hpp"
+#include "runfile/build_info.hpp"
 #include "runfile/run_file.hpp"
 
 namespace pbdbench::experiments {
@@ -95,27 +101,52 @@ std::string slurm_script(const ClaimsCommand& cmd, int shards) {
   return sh.str();
 }
 
-ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostream& log) {
+namespace {
+
+fs::path folder_of(ExperimentKind kind, const fs::path& given) {
+  return !given.empty() ? given : kind == ExperimentKind::Claim ? experiments_dir() : reproductions_dir();
+}
+
+fs::path whole_report_dir(ExperimentKind kind) {
   const fs::path source(PBDBENCH_SOURCE_DIR);
-  const bool claims = cmd.kind == ExperimentKind::Claim;
-  const fs::path dir = !cmd.experiments.empty() ? cmd.experiments : claims ? experiments_dir() : reproductions_dir();
-  std::vector<Experiment> all = load_experiments(dir);
+  return kind == ExperimentKind::Claim ? source / "paper" / "claims" : source / "paper";
+}
+
+// The experiments named (all when none), in the index's order; throws for an unknown id.
+std::vector<Experiment> choose(const std::vector<Experiment>& all, const std::vector<std::string>& ids, bool claims,
+                               const fs::path& dir) {
   std::vector<Experiment> chosen;
-  for (const std::string& id : cmd.ids) {
+  for (const std::string& id : ids) {
     auto it = std::find_if(all.begin(), all.end(), [&](const Experiment& e) { return e.id == id; });
     if (it == all.end()) {
-      std::vector<std::string> ids;
-      for (const Experiment& e : all) ids.push_back(e.id);
+      std::vector<std::string> known;
+      for (const Experiment& e : all) known.push_back(e.id);
       throw ExperimentError(fmt::format("no {} '{}' in {}; there are: {}", claims ? "claim" : "experiment", id,
-                                        dir.string(), fmt::join(ids, ", ")));
+                                        dir.string(), fmt::join(known, ", ")));
     }
     chosen.push_back(*it);
   }
-  if (cmd.ids.empty()) chosen = all;
+  return ids.empty() ? all : chosen;
+}
+
+}  // namespace
+
+ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostream& log) {
+  const fs::path source(PBDBENCH_SOURCE_DIR);
+  const bool claims = cmd.kind == ExperimentKind::Claim;
+  const fs::path dir = folder_of(cmd.kind, cmd.experiments);
+  std::vector<Experiment> all = load_experiments(dir);
+  // Claims: the index and the experiments cover each other.
+  std::optional<ClaimIndex> index;
+  if (claims) {
+    index = read_claim_index(claim_index_of(dir));
+    check_coverage(*index, all);
+  }
+  std::vector<Experiment> chosen = choose(all, cmd.ids, claims, dir);
 
   const std::string tier = to_string(cmd.tier);
   ClaimsOutcome outcome;
-  const fs::path whole_report = claims ? source / "paper" / "claims" : source / "paper";
+  const fs::path whole_report = whole_report_dir(cmd.kind);
   outcome.out = !cmd.out.empty() ? cmd.out
                 : (cmd.ids.empty() && cmd.tier == Tier::Full) ? whole_report
                                                                 : source / "results" / command_name(cmd.kind) / tier;
@@ -147,6 +178,13 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
                    }
                  });
     if (cmd.shard_count > 1) {
+      // The timing groups are units of their own: every run of a group is timed in one task, one
+      // after the other (their costs are compared with each other).
+      size_t unit = 0;
+      for (const Experiment& e : chosen)
+        for (const TimingSpec& t : e.timings)
+          if (static_cast<int>(unit++ % static_cast<size_t>(cmd.shard_count)) == cmd.shard_index)
+            (void)time_group(e, t, cmd.tier, options.runs_dir, cmd.force, &log);
       write_index(options.runs_dir / fmt::format("index-{}-of-{}.json", cmd.shard_index, cmd.shard_count), plan);
       out << fmt::format("shard {} of {}: {} runs made, {} failed; run the command again without --shard for "
                          "the report\n",
@@ -160,16 +198,28 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
 
   log << fmt::format("{}: {} experiment{}, {} tier, run files in {}\n", command_name(cmd.kind), chosen.size(),
                      chosen.size() == 1 ? "" : "s", tier, options.runs_dir.string());
-  out << fmt::format("id      verdict{}parts ({} {}, {} {}, - not testable), time\n",
+  out << fmt::format("id      verdict{}parts ({} {}, {} {}, I inconclusive, - not testable{}; "
+                     "lower case: beyond the article's regime), time\n",
                      claims ? "       " : "           ", claims ? "S" : "R", claims ? "supported" : "reproduced",
-                     claims ? "C" : "N", claims ? "contradicted" : "not reproduced");
+                     claims ? "C" : "N", claims ? "contradicted" : "not reproduced",
+                     claims ? "" : ", U setup unknown, = identity");
   std::vector<ClaimResult> results;
   for (const Experiment& e : chosen) {
     results.push_back(evaluate_claim(e, options));
     const ClaimResult& r = results.back();
     std::string parts;
-    for (const PartResult& p : r.parts)
-      parts += p.verdict == Verdict::Supported ? (claims ? 'S' : 'R') : p.verdict == Verdict::Contradicted ? (claims ? 'C' : 'N') : '-';
+    for (const PartResult& p : r.parts) {
+      char ch = '-';
+      switch (p.verdict) {
+        case Verdict::Supported: ch = claims ? 'S' : 'R'; break;
+        case Verdict::Contradicted: ch = claims ? 'C' : 'N'; break;
+        case Verdict::Inconclusive: ch = 'I'; break;
+        case Verdict::SetupUnknown: ch = 'U'; break;
+        case Verdict::Identity: ch = '='; break;
+        default: break;
+      }
+      parts += p.beyond ? static_cast<char>(std::tolower(ch)) : ch;
+    }
     out << fmt::format("{:<7} {:<{}} [{}] {:6.1f} s\n", r.id, verdict_word(r.verdict, r.kind), claims ? 13 : 17, parts,
                        r.wall_time);
     out.flush();
@@ -182,17 +232,29 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
   ctx.command = cmd.command_line;
   ctx.figures_dir = "figures";
   ctx.jobs = std::max(cmd.jobs, 1);
+  if (index) ctx.index = &*index;
+  const std::vector<Registration> registry = read_registry(registry_of(dir));
+  for (const ClaimResult& r : results)
+    ctx.registration.emplace(r.id, registration_status(registry, registry_of(dir), r.id, r.file,
+                                                       build_info().git_commit));
   write_text(outcome.out / "README.md", report_markdown(results, ctx));
   write_text(outcome.out / (claims ? "claims.json" : "reproductions.json"), results_json(results, ctx, outcome.out));
   if (!cmd.record.empty()) write_text(cmd.record, verdicts_toml(results, cmd.tier));
   if (!cmd.expect.empty()) outcome.differences = verdict_differences(results, cmd.expect);
 
-  int counts[3] = {0, 0, 0};
-  for (const ClaimResult& r : results) ++counts[static_cast<int>(r.verdict)];
-  out << fmt::format("{} {}: {} {}, {} {}, {} not testable -> {}\n", results.size(),
-                     claims ? "claims" : "experiments", counts[0], claims ? "supported" : "reproduced", counts[1],
-                     claims ? "contradicted" : "not reproduced", counts[2], (outcome.out / "README.md").string());
+  out << part_counts_line(results) << "\n" << experiment_counts_line(results) << "\n-> "
+      << (outcome.out / "README.md").string() << "\n";
   return outcome;
+}
+
+int run_register(const RegisterCommand& cmd, std::ostream& out) {
+  const bool claims = cmd.kind == ExperimentKind::Claim;
+  const fs::path dir = folder_of(cmd.kind, cmd.experiments);
+  const std::vector<Experiment> all = load_experiments(dir);
+  if (claims) check_coverage(read_claim_index(claim_index_of(dir)), all);
+  const fs::path results = !cmd.results.empty() ? cmd.results
+                                                : whole_report_dir(cmd.kind) / (claims ? "claims.json" : "reproductions.json");
+  return register_experiments(choose(all, cmd.ids, claims, dir), registry_of(dir), results, cmd.note, out);
 }
 
 }  // namespace pbdbench::experiments

@@ -51,6 +51,21 @@ struct ClaimsOutcome {
 // Throws ExperimentError for a bad experiment file or an unknown id.
 ClaimsOutcome run_claims(const ClaimsCommand& command, std::ostream& out, std::ostream& log);
 
+// `pbdbench register claims|paper [IDS] [--note TEXT]`: records the SHA-256 of each experiment file
+// whose content is not registered yet in the registry beside its folder (experiments/registry.hpp).
+// When the committed report already holds results for an experiment, the registration is a
+// revision after results: the note is required, and the earlier verdicts and rules are kept in
+// the entry. Returns the number of experiments registered. Throws ExperimentError for bad input.
+struct RegisterCommand {
+  ExperimentKind kind = ExperimentKind::Claim;
+  std::vector<std::string> ids;       // empty: every experiment of the folder
+  std::string note;
+  std::filesystem::path experiments;  // default: experiments_dir() or reproductions_dir()
+  std::filesystem::path results;      // the report's JSON (default paper/claims/claims.json or
+                                      // paper/reproductions.json)
+};
+int run_register(const RegisterCommand& command, std::ostream& out);
+
 // A Slurm job-array script that runs `command` (its kind, tier, ids and runs folder) as
 // `shards` array tasks, then the report in a job that depends on the array.
 std::string slurm_script(const ClaimsCommand& command, int shards);

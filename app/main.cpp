@@ -457,6 +457,19 @@ int main(int argc, char** argv) {
       "paper", "Run the paper reproductions and write paper/: each published number beside ours");
   add_experiment_options(paper_sub, "paper", "reproduction");
 
+  experiments::RegisterCommand register_cmd;
+  std::string register_what;
+  auto* register_sub = app.add_subcommand(
+      "register", "Register experiment files (their SHA-256, before any result) in claims/ or reproductions/registry.toml");
+  register_sub->add_option("what", register_what, "claims or paper")->required()->check(CLI::IsMember({"claims", "paper"}));
+  register_sub->add_option("ids", register_cmd.ids, "Ids (default: every experiment not registered as it is)");
+  register_sub->add_option("--note", register_cmd.note,
+                           "Why (required when the experiment already has results: a revision after results)");
+  register_sub->add_option("--experiments", register_cmd.experiments, "Folder of experiment files");
+  register_sub->add_option("--results", register_cmd.results,
+                           "The report's JSON whose results an earlier version had (default paper/claims/claims.json "
+                           "or paper/reproductions.json)");
+
   regress::RegressCommand regress_cmd;
   std::string regress_tier = "quick";
   bool regress_no_plot = false;
@@ -512,6 +525,12 @@ int main(int argc, char** argv) {
           std::cerr << "pbdbench: the plot was not drawn (" << script << ")\n";
       }
       return r.worse > 0 || r.bit_differences > 0 ? kExitRegression : kExitOk;
+    }
+    if (*register_sub) {
+      register_cmd.kind = register_what == "claims" ? experiments::ExperimentKind::Claim
+                                                    : experiments::ExperimentKind::Reproduction;
+      experiments::run_register(register_cmd, std::cout);
+      return kExitOk;
     }
     if (*claims_sub || *paper_sub) {
       claims_cmd.kind = *claims_sub ? experiments::ExperimentKind::Claim : experiments::ExperimentKind::Reproduction;

@@ -54,6 +54,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"failures/violated_initial_state", 256},  // 16 x 16
     {"failures/zero_rest_length", 11},         // 10 links
     {"free_fall", 1},
+    {"grid_on_ground", 1024},  // 32 x 32
     {"hanging_bar", 44},  // 2 x 11 x 2 vertices
     {"hanging_chain", 20},
     {"hanging_cloth", 4096},
