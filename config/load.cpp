@@ -12,6 +12,7 @@
 #include <toml++/toml.h>
 
 #include "config/config.hpp"
+#include "config/data_dir.hpp"
 #include "config/internal.hpp"
 
 namespace pbdbench::config {
@@ -655,7 +656,7 @@ Override parse_override(const std::string& text) {
 
 std::filesystem::path scenarios_dir() {
   if (const char* env = std::getenv("PBDBENCH_SCENARIOS"); env && *env) return env;
-  return std::filesystem::path(PBDBENCH_SOURCE_DIR) / "scenarios";
+  return data_dir() / "scenarios";
 }
 
 std::filesystem::path resolve_scenario(const std::string& name_or_path) {

@@ -94,6 +94,8 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x) {
       return eval_bending(x.row(p[0]), x.row(p[1]), x.row(p[2]), x.row(p[3]), c.rest);
     case ConstraintKind::FemDeviatoric:
     case ConstraintKind::FemHydrostatic:
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet:
       break;  // needs the element: eval_constraint(model, c, x)
   }
   ConstraintEval none;
@@ -109,6 +111,14 @@ ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Po
     return none;
   }
   const FemElement& e = model.elements[static_cast<size_t>(c.element)];
+  if (is_strain_kind(c.kind)) {
+    // A vector constraint (fem::eval_strain): C is the norm of its strain vector, and there is no
+    // one gradient to report.
+    ConstraintEval ev;
+    ev.C = fem::eval_strain(e, x).C.norm();
+    ev.valid = false;
+    return ev;
+  }
   if (c.kind == ConstraintKind::FemHydrostatic) return fem::eval_hydrostatic(e, x, c.rest);
   ConstraintEval ev = fem::eval_deviatoric(e, x);  // sqrt(tr F^T F), its rest is 0
   ev.C -= c.rest;
@@ -123,6 +133,8 @@ double normalized_error(const Constraint& c, double C) {
     case ConstraintKind::Bending:
     case ConstraintKind::FemDeviatoric:
     case ConstraintKind::FemHydrostatic:
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet:
       return std::abs(C);
   }
   return std::abs(C);

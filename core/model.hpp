@@ -39,13 +39,31 @@ enum class ConstraintKind : std::uint8_t {
                    // core/fem.hpp up to a constant (Macklin and Mueller 2021). These two are
                    // energy terms, not targets: their C is not zero at rest, and the constraint
                    // error metrics leave them out.
+  FemStrainTriangle,  // C = the strain vector of Model::elements[element], a triangle:
+                      // (E00, E11, sqrt 2 E01) with E its 2 x 2 strain (Mandel's form of
+                      // Voigt's vector, so that E : E = |C|^2)                       (1)
+  FemStrainTet,       // the same for a tet: (E00, E11, E22, sqrt 2 E12, sqrt 2 E02, sqrt 2 E01)
+                      // Macklin et al. 2016, sec. 6.3, eqs. 27 and 28: the strain components of
+                      // an element are one vector constraint with the compliance matrix
+                      // alpha = K^-1 / V, K the linear isotropic stiffness, so that
+                      // C^T alpha^-1 C / 2 = V Psi (StVK: Green strain; linear: small strain).
+                      // The matrix comes from the element (fem::strain_compliance); the scalar
+                      // `compliance` holds its deviatoric entry 1 / (2 mu V) for the record. Energy
+                      // terms, like the two above: left out of the constraint error metrics.
 };
 
-inline constexpr int kConstraintKindCount = 5;
+inline constexpr int kConstraintKindCount = 7;
 
-// True for the kinds that stand for an FEM element's energy (FemDeviatoric, FemHydrostatic).
+// True for the kinds that stand for an FEM element's energy (FemDeviatoric, FemHydrostatic,
+// FemStrainTriangle, FemStrainTet).
 constexpr bool is_fem_kind(ConstraintKind kind) {
-  return kind == ConstraintKind::FemDeviatoric || kind == ConstraintKind::FemHydrostatic;
+  return kind == ConstraintKind::FemDeviatoric || kind == ConstraintKind::FemHydrostatic ||
+         kind == ConstraintKind::FemStrainTriangle || kind == ConstraintKind::FemStrainTet;
+}
+
+// True for the vector (strain) kinds, whose multiplier is a vector (fem::eval_strain).
+constexpr bool is_strain_kind(ConstraintKind kind) {
+  return kind == ConstraintKind::FemStrainTriangle || kind == ConstraintKind::FemStrainTet;
 }
 
 // Number of particles a constraint of this kind acts on.
@@ -56,11 +74,14 @@ constexpr int arity(ConstraintKind kind) {
     case ConstraintKind::Bending: return 4;
     case ConstraintKind::FemDeviatoric: return 4;
     case ConstraintKind::FemHydrostatic: return 4;
+    case ConstraintKind::FemStrainTriangle: return 3;
+    case ConstraintKind::FemStrainTet: return 4;
   }
   return 0;
 }
 
-// "distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic"
+// "distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic", "fem_strain_triangle",
+// "fem_strain_tet"
 const char* to_string(ConstraintKind kind);
 
 struct Constraint {
@@ -77,21 +98,31 @@ struct Constraint {
 };
 
 // ---------------------------------------------------------------------------------------------
-// Hyperelastic FEM elements (linear tetrahedra). Their energy densities are in core/fem.hpp.
+// Hyperelastic FEM elements (linear tetrahedra, and linear triangles of the StVK material). Their
+// energy densities are in core/fem.hpp.
 enum class Material : std::uint8_t {
   StableNeoHookean,  // Psi = mu/2 (I_C - 3) + lambda_snh/2 (J - 1 - mu/lambda_snh)^2,
                      // lambda_snh = lambda + mu so that small strains obey linear elasticity
                      // (Smith et al. 2018 without the log term, as Macklin and Mueller 2021)
   Corotated,         // fixed corotated: Psi = mu |F - R|^2 + lambda/2 (J - 1)^2, F = R S
                      // (Stomakhin et al. 2012); its small-strain limit is linear elasticity
+  StVK,              // St Venant-Kirchhoff: Psi = mu E : E + lambda/2 tr(E)^2, E = (F^T F - I)/2
+                     // the Green strain (the linear isotropic law on the Green strain; Macklin et
+                     // al. 2016, sec. 6.3). Tets, and triangles (2 x 2 E: plane strain)
+  Linear,            // linear elasticity: Psi = mu e : e + lambda/2 tr(e)^2, e = (F + F^T)/2 - I
+                     // the small strain; not invariant under rotation (tets only)
 };
 
-const char* to_string(Material material);  // "stable_neo_hookean", "corotated"
+const char* to_string(Material material);  // "stable_neo_hookean", "corotated", "stvk", "linear"
 
 struct FemElement {
-  std::array<int, 4> particles{-1, -1, -1, -1};
-  Mat3 rest_inverse = Mat3::Identity();  // Dm^-1, Dm = [X1-X0, X2-X0, X3-X0] at rest (1/m)
-  double rest_volume = 0.0;              // m^3, |det Dm| / 6 > 0
+  std::array<int, 4> particles{-1, -1, -1, -1};  // a triangle's fourth entry is -1
+  int vertices = 4;                      // 4: a tet; 3: a triangle, a 2D element of the xy plane
+  Mat3 rest_inverse = Mat3::Identity();  // Dm^-1, Dm = [X1-X0, X2-X0, X3-X0] at rest (1/m); a
+                                         // triangle's is the 2 x 2 top-left block, Dm = the x and
+                                         // y of the rest edges X1-X0, X2-X0
+  double rest_volume = 0.0;              // m^3, |det Dm| / 6 > 0; a triangle's is its rest area
+                                         // times its thickness
   Material material = Material::StableNeoHookean;
   double mu = 0.0;      // Pa, shear modulus E / (2 (1 + nu))
   double lambda = 0.0;  // Pa, Lame's first parameter of linear elasticity E nu / ((1+nu)(1-2nu))

@@ -122,7 +122,9 @@ ClaimResult evaluate_claim(const Experiment& experiment, const EvaluateOptions& 
 PartResult decide_part(const Experiment& experiment, const PartSpec& part, const ClaimResult& measured);
 
 // The run files an experiment needs in a tier, in a stable order (runs, then trials), with the
-// configuration each must hold; `current` when the file already holds it from this build.
+// configuration each must hold; `current` when the file already holds it from this build. (When
+// the runs are split into shards, each is a unit of its own; each [[timing]] group is one unit,
+// timed in one task: app/claims_command.cpp.)
 struct PlannedRun {
   std::string experiment;  // id
   std::string run;         // name
@@ -130,6 +132,7 @@ struct PlannedRun {
   std::string scenario;    // what `pbdbench run` loads
   std::vector<config::Override> overrides;
   std::filesystem::path file;
+  std::string config_toml;  // the configuration the file must hold
   bool current = false;
 };
 std::vector<PlannedRun> plan_runs(const Experiment& experiment, const EvaluateOptions& options);

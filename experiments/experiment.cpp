@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "config/data_dir.hpp"
 #include "config/toml_text.hpp"
 #include "runfile/series.hpp"
 
@@ -621,11 +622,11 @@ std::vector<Experiment> load_experiments(const fs::path& dir, bool check_configs
   return out;
 }
 
-fs::path reproductions_dir() { return fs::path(PBDBENCH_SOURCE_DIR) / "reproductions" / "experiments"; }
+fs::path reproductions_dir() { return config::data_dir() / "reproductions" / "experiments"; }
 
 fs::path experiments_dir() {
   if (const char* env = std::getenv("PBDBENCH_CLAIMS"); env != nullptr && *env != '\0') return env;
-  return fs::path(PBDBENCH_SOURCE_DIR) / "claims" / "experiments";
+  return config::data_dir() / "claims" / "experiments";
 }
 
 }  // namespace pbdbench::experiments

@@ -247,9 +247,9 @@ std::vector<Experiment> load_experiments(const std::filesystem::path& dir,
 // Orders claim ids as the index does: by section numbers, then by letter ("S3.1" < "S3.1a").
 bool claim_id_less(const std::string& a, const std::string& b);
 
-// Where the experiments live: $PBDBENCH_CLAIMS when set, else <source dir>/claims/experiments;
-// the reproductions: <source dir>/reproductions/experiments. Each folder's parent holds the
-// registry (registry.toml) and, for claims, the claims index (index.toml).
+// Where the experiments live: $PBDBENCH_CLAIMS when set, else <data dir>/claims/experiments;
+// the reproductions: <data dir>/reproductions/experiments (config/data_dir.hpp). Each folder's
+// parent holds the registry (registry.toml) and, for claims, the claims index (index.toml).
 std::filesystem::path experiments_dir();
 std::filesystem::path reproductions_dir();
 

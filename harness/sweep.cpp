@@ -230,10 +230,10 @@ bool run_children(const fs::path& executable, const std::vector<ChildRun>& runs,
 }
 
 bool SweepResult::ok() const {
-  return std::none_of(runs.begin(), runs.end(), [](const SweepRunResult& r) {
-    return r.status == "failed" || r.status == "refused" || r.status == "incomplete" || r.status == "busy" ||
-           r.status == "pending";
-  });
+  return unfinished.empty() && std::none_of(runs.begin(), runs.end(), [](const SweepRunResult& r) {
+           return r.status == "failed" || r.status == "refused" || r.status == "incomplete" || r.status == "busy" ||
+                  r.status == "pending";
+         });
 }
 
 SweepSpec load_sweep(const fs::path& path) {
@@ -383,6 +383,24 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
       r.status = "pending";
       pending.push_back(k);
     }
+  }
+  if (options.merge_shards > 0) {
+    // The merge makes no run: what is not current is unfinished, named with its shard.
+    for (size_t k : pending) {  // (with --force every run is pending: the current ones are fine)
+      SweepRunResult& r = result.runs[k];
+      r.status = run_state(r.file, configs[k]);
+      if (r.status == "current") {
+        r.skipped = true;
+        r.status = read_run_file(r.file, false).status();
+        continue;
+      }
+      result.unfinished.push_back({static_cast<int>(indices[k] % static_cast<size_t>(options.merge_shards)),
+                                   spec.runs[indices[k]].stem, r.file, r.status});
+    }
+    log << "sweep " << spec.name << ": merge of " << options.merge_shards << " shards: " << indices.size()
+        << " runs, " << result.unfinished.size() << " not finished -> " << options.out_dir.string() << "\n";
+    if (result.unfinished.empty()) write_index(spec, options, indices, result.runs);
+    return result;
   }
   const size_t skipped = indices.size() - pending.size();
   log << "sweep " << spec.name << ": " << indices.size() << " runs";

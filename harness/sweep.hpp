@@ -13,7 +13,8 @@
 //   "solver.substeps" = 1
 //
 // Keys may be quoted dotted paths ("solver.iterations") or nested tables ([set.solver]).
-// Each run writes <out>/<parameters>.h5 and a log beside it; <out>/index.json lists them all.
+// Each run writes <out>/<parameters>.h5 and a log beside it; <out>/index.json lists them all
+// (a shard: <out>/index.shard-I-of-N.json).
 #pragma once
 
 #include <filesystem>
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "config/config.hpp"
+#include "harness/shards.hpp"
 
 namespace pbdbench {
 
@@ -49,7 +51,10 @@ struct SweepOptions {
   int jobs = 1;                      // runs at once (child processes)
   bool force = false;                // rerun runs that are already complete
   int shard_index = 0;               // run only the runs with index % shard_count == shard_index
-  int shard_count = 1;
+  int shard_count = 1;               // (harness/shards.hpp: one run a unit, dealt in turn)
+  int merge_shards = 0;              // > 0: the merge of this many shards: run nothing; the runs
+                                     // not current are SweepResult::unfinished, and index.json is
+                                     // written only when there are none
   std::vector<config::Override> extra;  // --set overrides applied after the sweep's own
   std::filesystem::path executable;  // the pbdbench binary that runs each child
   bool progress = false;             // print a line per finished run
@@ -65,8 +70,9 @@ struct SweepRunResult {
 
 struct SweepResult {
   std::vector<SweepRunResult> runs;  // one per run of this shard, in the sweep's order
+  std::vector<UnfinishedRun> unfinished;  // a merge: the runs not finished, by shard
   bool interrupted = false;          // a cancellation (core/cancel.hpp) stopped it
-  bool ok() const;                   // every run complete or exploded
+  bool ok() const;                   // every run complete or exploded, nothing unfinished
 };
 
 // Validates every run's configuration first (nothing starts if one is refused: the error names

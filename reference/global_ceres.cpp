@@ -354,6 +354,13 @@ GlobalResult solve_global_ceres(const GlobalProblem& problem, const SolverOption
                                 std::to_string(problem.rows().size()) + " rows");
   if (!(options.global_regularization > 0.0))
     throw std::invalid_argument("global-ceres: solver.global.regularization must be > 0");
+  for (const int j : problem.compliant())
+    if (is_strain_kind(model.constraints[static_cast<size_t>(j)].kind))
+      throw std::invalid_argument(
+          "global-ceres cannot solve " + std::string(to_string(model.constraints[static_cast<size_t>(j)].kind)) +
+          " constraint " + std::to_string(j) +
+          " (a strain vector of a stvk or linear element): its least-squares costs are scalar; "
+          "use global-cholmod or global-cg");
   const ceres::TrustRegionStrategyType strategy = strategy_of(options.global_ceres_method);
   if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE))
     throw std::runtime_error("global-ceres: this Ceres has no SuiteSparse");

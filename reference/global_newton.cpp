@@ -161,7 +161,12 @@ struct GlobalNewton::Impl {
       dq = cg.solve(b);
       result.inner_iterations += cg.iterations();
       ++result.linear_solves;
-      return cg.info() == Eigen::Success && dq.allFinite();
+      // A solve that used up solver.global.cg_max_iterations is kept (an inexact Newton step:
+      // CG's iterates from 0 are descent directions on an SPD matrix, and the line search below
+      // guards the step), so that a fixed CG budget a step, as Macklin et al. 2019 ran backward
+      // Euler (100 Jacobi-preconditioned iterations), is what runs.
+      const bool budget_spent = cg.info() == Eigen::NoConvergence && cg.iterations() >= cg.maxIterations();
+      return (cg.info() == Eigen::Success || budget_spent) && dq.allFinite();
     };
     if (options.global_cg_preconditioner == "jacobi") {
       Eigen::ConjugateGradient<SpMat, Eigen::Lower | Eigen::Upper, Eigen::DiagonalPreconditioner<double>> cg;
@@ -224,7 +229,7 @@ struct GlobalNewton::Impl {
       p = z + (rz_next / rz) * p;
       rz = rz_next;
     }
-    return false;
+    return dq.allFinite();  // the budget is spent: an inexact Newton step (as assembled above)
   }
 };
 

@@ -276,7 +276,7 @@ TEST(LoadErrors, UnknownSceneKind) {
   const ConfigError e = load_error("[scene]\nkind = \"clth\"\n");
   expect_error(e, "bad.toml", 2, "scene.kind",
                "scene.kind = 'clth' is not one of particle, spring, pendulum, chain, cloth, "
-               "tet_block, spheres, mesh (did you mean 'cloth'?)");
+               "tet_block, tri_block, spheres, mesh (did you mean 'cloth'?)");
 }
 
 TEST(LoadErrors, KeyOfAnotherSceneKind) {

@@ -43,6 +43,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"balls_in_bowl", 125},    // 5 x 5 x 5
     {"cantilever_beam", 208},  // 13 x 4 x 4 vertices
     {"cantilever_fem", 99},    // 11 x 3 x 3 vertices
+    {"cantilever_plane", 105},  // 21 x 5 vertices
     {"cloth_on_character", 768},  // 24 x 32
     {"failures/cloth_on_ground", 256},         // 16 x 16
     {"failures/cyclic_penetration", 3},        // A, B and C
