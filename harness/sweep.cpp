@@ -209,12 +209,15 @@ bool run_children(const fs::path& executable, const std::vector<ChildRun>& runs,
     while (!stopping && running.size() < static_cast<size_t>(std::max(jobs, 1)) && next < runs.size())
       launch(next++);
     if (running.empty()) break;  // stopping, or the last runs were busy
+    // Polled, so that a signal that comes between the check above and the wait is seen within
+    // 20 ms (a blocking wait would sleep until a child ends).
     int wstatus = 0;
-    const pid_t pid = waitpid(-1, &wstatus, 0);
-    if (pid < 0) {
-      if (errno == EINTR) continue;  // a signal: the loop looks at it
-      throw std::runtime_error(std::string("waitpid failed: ") + std::strerror(errno));
+    const pid_t pid = waitpid(-1, &wstatus, WNOHANG);
+    if (pid == 0 || (pid < 0 && errno == EINTR)) {
+      ::usleep(20000);
+      continue;
     }
+    if (pid < 0) throw std::runtime_error(std::string("waitpid failed: ") + std::strerror(errno));
     auto it = running.find(pid);
     if (it == running.end()) continue;
     const size_t k = it->second;
