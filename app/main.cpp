@@ -31,6 +31,7 @@
 #include "app/slurm_command.hpp"
 #include "config/config.hpp"
 #include "config/data_dir.hpp"
+#include "core/cancel.hpp"
 #include "harness/compare.hpp"
 #include "harness/converge.hpp"
 #include "harness/runner.hpp"
@@ -38,6 +39,7 @@
 #include "harness/summary.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
+#include "runfile/output_guard.hpp"
 #include "runfile/series.hpp"
 #include "solvers/solver.hpp"
 
@@ -51,7 +53,15 @@ constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitExploded = 
 
 std::atomic<bool> g_stop{false};
 
-void on_signal(int) { g_stop.store(true); }
+// The first SIGINT or SIGTERM asks the run to stop (inside its step: core/cancel.hpp) and
+// records it as interrupted; a second one ends the process at once.
+void on_signal(int sig) {
+  if (g_stop.exchange(true)) {
+    signal(sig, SIG_DFL);
+    raise(sig);
+  }
+  request_cancel();
+}
 
 void install_signal_handlers() {
   struct sigaction sa {};
@@ -111,7 +121,7 @@ fs::path self_executable() { return config::executable_path(); }
 fs::path script_path(const char* name) { return config::data_dir() / "scripts" / name; }
 
 int cmd_run(const std::string& scenario, const std::string& solver, const std::vector<std::string>& sets,
-            const std::string& out_arg, bool quiet) {
+            const std::string& out_arg, bool quiet, bool force) {
   std::vector<config::Override> overrides = parse_overrides(sets);
   if (!solver.empty()) overrides.insert(overrides.begin(), {"solver.name", solver});
   const config::Config cfg = config::load(scenario, overrides);
@@ -124,6 +134,8 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   RunControl control;
   control.progress = [&](long done, long total) { progress(done, total); };
   control.stop = &g_stop;
+  control.force = force;
+  control.notice = [](const std::string& text) { std::cerr << "pbdbench: " << text << "\n"; };
   const RunOutcome r = run_config(cfg, out, control);
   const char* status = to_string(r.status);
   std::cout << fmt::format("{} [{}]: {} after {}/{} steps in {:.2f} s ({:.2f} s in the solver) -> {}\n",
@@ -165,7 +177,9 @@ int cmd_sweep(const std::string& file, const std::string& out_arg, int jobs, boo
     }
     return app::submit_to_slurm("sweep", array, opt.out_dir, shard, to_make, argc, argv, std::cout);
   }
+  install_signal_handlers();
   const SweepResult result = run_sweep(spec, opt, std::cout);
+  if (result.interrupted) return kExitInterrupted;
   if (!result.unfinished.empty()) {
     app::report_unfinished("sweep", result.unfinished, opt.merge_shards, opt.out_dir, std::cerr);
     return kExitFailure;
@@ -235,6 +249,13 @@ int cmd_summary(const std::vector<std::string>& files, const std::string& index_
     for (const auto& p : h5) entries.push_back({p.stem().string(), p});
   }
   if (entries.empty()) throw config::ConfigError({"summary", 0}, "", "no run files given");
+  for (const SummaryEntry& e : entries) {
+    std::error_code ec;
+    if (!fs::exists(e.file, ec))
+      throw config::ConfigError({"summary", 0}, "", e.file.string() + ": no such file");
+    if (!is_run_file(e.file))
+      throw config::ConfigError({"summary", 0}, "", e.file.string() + ": not a pbdbench run file");
+  }
   std::cout << (csv ? summary_csv(entries) : summary_table(entries));
   return kExitOk;
 }
@@ -354,11 +375,14 @@ int main(int argc, char** argv) {
   run->add_option("--set", sets, "Override a key by its dotted path: --set time.dt=0.005 (repeatable)");
   run->add_option("--out", out, "Run file to write (default results/runs/<scenario>/<solver>-<hash>.h5)");
   run->add_flag("--quiet", quiet, "Print only the one-line result");
+  run->add_flag("--force", force,
+                "Run even when the planned run does not fit this machine (memory, disk, more than a day)");
 
   auto* sweep = app.add_subcommand("sweep", "Run a sweep file's grid in parallel, skipping runs already complete");
   sweep->add_option("file", file, "Sweep file (TOML)")->required();
   sweep->add_option("--out", out, "Directory for the run files (default results/sweeps/<name>)");
-  sweep->add_option("--jobs,-j", jobs, "Runs at once (default: the cores this process may use: its CPU affinity, $SLURM_CPUS_PER_TASK)");
+  sweep->add_option("--jobs,-j", jobs, "Runs at once (default 0: the cores this process may use: its CPU affinity, $SLURM_CPUS_PER_TASK)")
+      ->check(CLI::Range(0, 4096));
   sweep->add_flag("--force", force, "Rerun runs that are already complete");
   sweep->add_option("--set", sets, "Override a key in every run (repeatable)");
   app::ArrayOptions sweep_array;
@@ -477,6 +501,19 @@ int main(int argc, char** argv) {
   app::ArrayOptions regress_array;
   app::add_array_options(regress_sub, regress_array);
 
+  // A mistyped subcommand is named, with the closest one (CLI11 would only say that one is
+  // required).
+  if (argc > 1 && argv[1][0] != '-') {
+    std::vector<std::string> names;
+    for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
+    if (std::find(names.begin(), names.end(), argv[1]) == names.end()) {
+      const std::string close = config::suggest_name(argv[1], names);
+      std::cerr << "pbdbench: unknown command '" << argv[1] << "'"
+                << (close.empty() ? "" : " (did you mean '" + close + "'?)") << "; the commands are "
+                << fmt::format("{}", fmt::join(names, ", ")) << " (pbdbench --help)\n";
+      return kExitBadInput;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -485,7 +522,7 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*run) return cmd_run(scenario, solver, sets, out, quiet);
+    if (*run) return cmd_run(scenario, solver, sets, out, quiet, force);
     if (*sweep) return cmd_sweep(file, out, jobs, force, sweep_array, sets, quiet, argc, argv);
     if (app.got_subcommand("list")) return cmd_list();
     if (*describe) return cmd_describe(scenario, sets, kind);
@@ -554,6 +591,9 @@ int main(int argc, char** argv) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const CompareInputError& e) {
+    std::cerr << "pbdbench: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const OutputRefused& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const std::exception& e) {

@@ -734,7 +734,11 @@ std::string suggest(const std::string& word, const std::vector<std::string>& can
   const std::size_t limit = std::clamp<std::size_t>(word.size() / 3, 1, 3);
   std::string best;
   std::size_t best_d = limit + 1;
+  // The distance is at least the difference in length: only candidates within the limit are
+  // compared, so that the search stays cheap whatever the word (a 1 MiB key is refused at once).
+  auto far = [](std::size_t a, std::size_t b, std::size_t limit) { return (a > b ? a - b : b - a) > limit; };
   for (const std::string& c : candidates) {
+    if (far(word.size(), c.size(), limit)) continue;
     const std::size_t d = edit_distance(word, c);
     if (d < best_d) {
       best_d = d;
@@ -747,7 +751,9 @@ std::string suggest(const std::string& word, const std::vector<std::string>& can
   const std::size_t tail_limit = std::clamp<std::size_t>(tail.size() / 3, 0, 3);
   best_d = tail_limit + 1;
   for (const std::string& c : candidates) {
-    const std::size_t d = edit_distance(tail, last_component(c));
+    const std::string c_tail = last_component(c);
+    if (far(tail.size(), c_tail.size(), tail_limit)) continue;
+    const std::size_t d = edit_distance(tail, c_tail);
     if (d < best_d) {
       best_d = d;
       best = c;
@@ -841,5 +847,9 @@ std::string type_label(const KeySpec& k) {
 }
 
 }  // namespace detail
+
+std::string suggest_name(const std::string& word, const std::vector<std::string>& candidates) {
+  return detail::suggest(word, candidates);
+}
 
 }  // namespace pbdbench::config

@@ -36,6 +36,8 @@
 // away). x and lambda are then the last iterate, unconverged.
 #include "reference/global_ceres.hpp"
 
+#include "core/cancel.hpp"
+
 #include <ceres/ceres.h>
 
 #include <algorithm>
@@ -297,6 +299,7 @@ class CeresSolve final : public ceres::IterationCallback {
   // the trust region has been shrunk kMaxRejections times in a row (the cost can no longer tell
   // the candidate steps apart; the best point is kept).
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    if (cancel_requested()) return ceres::SOLVER_ABORT;  // Solve() returns; the caller throws
     if (summary.iteration == 0) {
       rejections_ = 0;
       return ceres::SOLVER_CONTINUE;
@@ -451,6 +454,7 @@ GlobalResult solve_global_ceres(const GlobalProblem& problem, const SolverOption
   for (int round = 1; round <= max_rounds; ++round) {
     ceres::Solver::Summary summary;
     ceres::Solve(so, &least_squares, &summary);
+    throw_if_cancelled("a Levenberg-Marquardt iteration");
     result.iterations = round;
     // SPARSE_NORMAL_CHOLESKY factorises J^T J + mu D afresh for every linear solve (the symbolic
     // analysis once per Solve call), so factorisations and linear solves are the same count.

@@ -1,5 +1,7 @@
 #include "reference/global_newton.hpp"
 
+#include "core/cancel.hpp"
+
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <Eigen/IterativeLinearSolvers>
@@ -213,6 +215,7 @@ struct GlobalNewton::Impl {
     ++result.linear_solves;
     if (r.norm() <= stop) return true;
     for (int it = 0; it < options.global_cg_max_iterations; ++it) {
+      if (it % 64 == 0) throw_if_cancelled("a conjugate-gradient iteration");
       apply(p, Ap);
       const double pAp = p.dot(Ap);
       if (!(pAp > 0.0)) return false;
@@ -274,6 +277,7 @@ GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
   Eigen::VectorXd grad, dq;
   Points x_trial;
   for (int it = 1; it <= o.global_max_iterations; ++it) {
+    throw_if_cancelled("a Newton iteration");
     // The Newton system of L_A for the current multipliers.
     const Clock::time_point t_lin = Clock::now();
     im.row_terms(problem, x, row_lambda, eps, terms);

@@ -23,6 +23,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/cancel.hpp"
 #include "core/constraint_functions.hpp"
 #include "core/fem.hpp"
 #include "solvers/step_common.hpp"
@@ -91,6 +92,7 @@ class ForceSymplecticSolver final : public Solver {
     f_.resize(particles_, 3);
 
     for (int s = 0; s < substeps; ++s) {
+      throw_if_cancelled("a substep");
       const double t_end = state.time + (s + 1) * h;
       PhaseTimer timer;
       set_kinematic(model, x, v, t_end);
