@@ -23,19 +23,23 @@
 #include <filesystem>
 #include <iostream>
 #include <limits>
-#include <thread>
 
 #include <fmt/format.h>
 
 #include "app/claims_command.hpp"
 #include "app/regress_command.hpp"
+#include "app/slurm_command.hpp"
 #include "config/config.hpp"
+#include "config/data_dir.hpp"
+#include "core/cancel.hpp"
 #include "harness/compare.hpp"
 #include "harness/converge.hpp"
 #include "harness/runner.hpp"
+#include "harness/slurm.hpp"
 #include "harness/summary.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
+#include "runfile/output_guard.hpp"
 #include "runfile/series.hpp"
 #include "solvers/solver.hpp"
 
@@ -49,7 +53,15 @@ constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitExploded = 
 
 std::atomic<bool> g_stop{false};
 
-void on_signal(int) { g_stop.store(true); }
+// The first SIGINT or SIGTERM asks the run to stop (inside its step: core/cancel.hpp) and
+// records it as interrupted; a second one ends the process at once.
+void on_signal(int sig) {
+  if (g_stop.exchange(true)) {
+    signal(sig, SIG_DFL);
+    raise(sig);
+  }
+  request_cancel();
+}
 
 void install_signal_handlers() {
   struct sigaction sa {};
@@ -103,15 +115,13 @@ class Progress {
   std::chrono::steady_clock::time_point last_{};
 };
 
-fs::path self_executable() {
-  std::error_code ec;
-  fs::path p = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) throw std::runtime_error("cannot locate the pbdbench executable");
-  return p;
-}
+fs::path self_executable() { return config::executable_path(); }
+
+// A script of the data folder's scripts/ (config/data_dir.hpp).
+fs::path script_path(const char* name) { return config::data_dir() / "scripts" / name; }
 
 int cmd_run(const std::string& scenario, const std::string& solver, const std::vector<std::string>& sets,
-            const std::string& out_arg, bool quiet) {
+            const std::string& out_arg, bool quiet, bool force) {
   std::vector<config::Override> overrides = parse_overrides(sets);
   if (!solver.empty()) overrides.insert(overrides.begin(), {"solver.name", solver});
   const config::Config cfg = config::load(scenario, overrides);
@@ -124,6 +134,8 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   RunControl control;
   control.progress = [&](long done, long total) { progress(done, total); };
   control.stop = &g_stop;
+  control.force = force;
+  control.notice = [](const std::string& text) { std::cerr << "pbdbench: " << text << "\n"; };
   const RunOutcome r = run_config(cfg, out, control);
   const char* status = to_string(r.status);
   std::cout << fmt::format("{} [{}]: {} after {}/{} steps in {:.2f} s ({:.2f} s in the solver) -> {}\n",
@@ -140,32 +152,38 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   return kExitFailure;
 }
 
-// "--shard I/N" -> (I, N); a ConfigError (bad input) unless 0 <= I < N.
-void parse_shard(const std::string& shard, int& index, int& count) {
-  const auto slash = shard.find('/');
-  try {
-    if (slash == std::string::npos) throw std::invalid_argument("no slash");
-    index = std::stoi(shard.substr(0, slash));
-    count = std::stoi(shard.substr(slash + 1));
-  } catch (const std::exception&) {
-    throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
-  }
-  if (count < 1 || index < 0 || index >= count)
-    throw config::ConfigError({"--shard " + shard, 0}, "", "expected --shard I/N with 0 <= I < N");
-}
-
-int cmd_sweep(const std::string& file, const std::string& out_arg, int jobs, bool force, const std::string& shard,
-              const std::vector<std::string>& sets, bool quiet) {
+int cmd_sweep(const std::string& file, const std::string& out_arg, int jobs, bool force,
+              const app::ArrayOptions& array, const std::vector<std::string>& sets, bool quiet, int argc, char** argv) {
   const SweepSpec spec = load_sweep(file);
   SweepOptions opt;
   opt.out_dir = out_arg.empty() ? fs::path("results") / "sweeps" / spec.name : fs::path(out_arg);
-  opt.jobs = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  opt.jobs = jobs > 0 ? jobs : slurm::allocated_cpus();
   opt.force = force;
   opt.extra = parse_overrides(sets);
   opt.executable = self_executable();
   opt.progress = !quiet;
-  if (!shard.empty()) parse_shard(shard, opt.shard_index, opt.shard_count);
+  app::parse_array_options(array, opt.shard_index, opt.shard_count);
+  opt.merge_shards = array.merge;
+  if (array.slurm > 0) {
+    // One run a unit, dealt in turn (as run_sweep shards).
+    std::vector<int> shard;
+    std::vector<bool> to_make;
+    for (size_t i = 0; i < spec.runs.size(); ++i) {
+      std::vector<config::Override> o = spec.runs[i].overrides;
+      o.insert(o.end(), opt.extra.begin(), opt.extra.end());
+      const fs::path run_file = opt.out_dir / (spec.runs[i].stem + ".h5");
+      shard.push_back(static_cast<int>(i % static_cast<size_t>(array.slurm)));
+      to_make.push_back(force || !run_is_current(run_file, config::load(spec.scenario, o).to_toml()));
+    }
+    return app::submit_to_slurm("sweep", array, opt.out_dir, shard, to_make, argc, argv, std::cout);
+  }
+  install_signal_handlers();
   const SweepResult result = run_sweep(spec, opt, std::cout);
+  if (result.interrupted) return kExitInterrupted;
+  if (!result.unfinished.empty()) {
+    app::report_unfinished("sweep", result.unfinished, opt.merge_shards, opt.out_dir, std::cerr);
+    return kExitFailure;
+  }
   std::vector<SummaryEntry> entries;
   size_t k = 0;
   for (size_t i = 0; i < spec.runs.size(); ++i) {
@@ -231,6 +249,13 @@ int cmd_summary(const std::vector<std::string>& files, const std::string& index_
     for (const auto& p : h5) entries.push_back({p.stem().string(), p});
   }
   if (entries.empty()) throw config::ConfigError({"summary", 0}, "", "no run files given");
+  for (const SummaryEntry& e : entries) {
+    std::error_code ec;
+    if (!fs::exists(e.file, ec))
+      throw config::ConfigError({"summary", 0}, "", e.file.string() + ": no such file");
+    if (!is_run_file(e.file))
+      throw config::ConfigError({"summary", 0}, "", e.file.string() + ": not a pbdbench run file");
+  }
   std::cout << (csv ? summary_csv(entries) : summary_table(entries));
   return kExitOk;
 }
@@ -270,7 +295,7 @@ int cmd_compare(const std::string& run_file, const std::string& reference_file,
     if (!temporary) std::cout << "-> " << out.string() << "\n";
   }
   if (plot.empty()) return kExitOk;
-  const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_compare.py";
+  const fs::path script = script_path("plot_compare.py");
   std::cout.flush();  // before the script's own output
   const int rc = run_python(script, {out.string(), "-o", plot});
   if (temporary) {
@@ -308,9 +333,14 @@ int cmd_claims(experiments::ClaimsCommand command, bool plots, int argc, char** 
     command.command_line += (i ? " " : "") + a;
   }
   const experiments::ClaimsOutcome outcome = experiments::run_claims(command, std::cout, std::cerr);
+  if (!outcome.unfinished.empty()) {  // a merge that found runs not finished
+    app::report_unfinished(command.kind == experiments::ExperimentKind::Claim ? "claims" : "paper",
+                           outcome.unfinished, command.merge_shards, outcome.runs, std::cerr);
+    return kExitFailure;
+  }
   if (outcome.out.empty()) return outcome.failed_runs > 0 ? kExitFailure : kExitOk;  // a shard
   if (plots) {
-    const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_claims.py";  // both reports
+    const fs::path script = script_path("plot_claims.py");  // both reports
     const int rc = run_python(script, {outcome.out.string()});
     if (rc != 0) {
       std::cerr << "pbdbench: the figures were not drawn (" << script << " exited " << rc << ")\n";
@@ -334,7 +364,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string(build_info().version) + " (" + build_info().git_commit + ")");
 
-  std::string scenario, solver, out, file, shard, index_dir;
+  std::string scenario, solver, out, file, index_dir;
   std::vector<std::string> sets, files;
   bool quiet = false, force = false, csv = false, markdown = false;
   int jobs = 0;
@@ -345,14 +375,18 @@ int main(int argc, char** argv) {
   run->add_option("--set", sets, "Override a key by its dotted path: --set time.dt=0.005 (repeatable)");
   run->add_option("--out", out, "Run file to write (default results/runs/<scenario>/<solver>-<hash>.h5)");
   run->add_flag("--quiet", quiet, "Print only the one-line result");
+  run->add_flag("--force", force,
+                "Run even when the planned run does not fit this machine (memory, disk, more than a day)");
 
   auto* sweep = app.add_subcommand("sweep", "Run a sweep file's grid in parallel, skipping runs already complete");
   sweep->add_option("file", file, "Sweep file (TOML)")->required();
   sweep->add_option("--out", out, "Directory for the run files (default results/sweeps/<name>)");
-  sweep->add_option("--jobs,-j", jobs, "Runs at once (default: the number of cores)");
+  sweep->add_option("--jobs,-j", jobs, "Runs at once (default 0: the cores this process may use: its CPU affinity, $SLURM_CPUS_PER_TASK)")
+      ->check(CLI::Range(0, 4096));
   sweep->add_flag("--force", force, "Rerun runs that are already complete");
-  sweep->add_option("--shard", shard, "Run only shard I of N (I/N, 0-based) for a job array");
   sweep->add_option("--set", sets, "Override a key in every run (repeatable)");
+  app::ArrayOptions sweep_array;
+  app::add_array_options(sweep, sweep_array);
   sweep->add_flag("--quiet", quiet, "Print only the summary");
 
   app.add_subcommand("list", "List the scenarios, solvers and scene kinds");
@@ -404,9 +438,9 @@ int main(int argc, char** argv) {
   // claims and paper: the same engine on two folders of experiments (claims/experiments,
   // reproductions/), with the same options.
   experiments::ClaimsCommand claims_cmd;
-  std::string tier = "full", experiment_shard;
+  std::string tier = "full";
   bool no_plots = false;
-  int slurm = 0;
+  app::ArrayOptions experiment_array;
   auto add_experiment_options = [&](CLI::App* sub, const std::string& default_out, const std::string& what) {
     sub->add_option("ids", claims_cmd.ids, "Ids (default: every " + what + ")");
     sub->add_option("--tier", tier, "quick (seconds, the test suite) or full (the report)")
@@ -417,11 +451,10 @@ int main(int argc, char** argv) {
     sub->add_option("--runs", claims_cmd.runs, "Run files folder (default results/<command>/<tier>/runs)");
     sub->add_option("--experiments", claims_cmd.experiments, "Folder of experiment files");
     sub->add_flag("--force", claims_cmd.force, "Run again even when current run files exist");
-    sub->add_option("--jobs,-j", claims_cmd.jobs, "Runs at once, in child processes (default 1: in this process)")
+    sub->add_option("--jobs,-j", claims_cmd.jobs,
+                    "Runs at once, in child processes (default: in this process; a shard: the cores it may use)")
         ->check(CLI::PositiveNumber);
-    sub->add_option("--shard", experiment_shard, "Make only the runs of shard I of N (I/N, 0-based), no report");
-    sub->add_option("--slurm", slurm, "Print a Slurm job-array script of N shards and exit")
-        ->check(CLI::PositiveNumber);
+    app::add_array_options(sub, experiment_array);
     sub->add_option("--record", claims_cmd.record, "Write every part's verdict to this file");
     sub->add_option("--expect", claims_cmd.expect, "Compare the verdicts with this record; exit 5 when one differs");
     sub->add_flag("--no-plots", no_plots, "Do not draw the figures");
@@ -432,6 +465,19 @@ int main(int argc, char** argv) {
   auto* paper_sub = app.add_subcommand(
       "paper", "Run the paper reproductions and write paper/: each published number beside ours");
   add_experiment_options(paper_sub, "paper", "reproduction");
+
+  experiments::RegisterCommand register_cmd;
+  std::string register_what;
+  auto* register_sub = app.add_subcommand(
+      "register", "Register experiment files (their SHA-256, before any result) in claims/ or reproductions/registry.toml");
+  register_sub->add_option("what", register_what, "claims or paper")->required()->check(CLI::IsMember({"claims", "paper"}));
+  register_sub->add_option("ids", register_cmd.ids, "Ids (default: every experiment not registered as it is)");
+  register_sub->add_option("--note", register_cmd.note,
+                           "Why (required when the experiment already has results: a revision after results)");
+  register_sub->add_option("--experiments", register_cmd.experiments, "Folder of experiment files");
+  register_sub->add_option("--results", register_cmd.results,
+                           "The report's JSON whose results an earlier version had (default paper/claims/claims.json "
+                           "or paper/reproductions.json)");
 
   regress::RegressCommand regress_cmd;
   std::string regress_tier = "quick";
@@ -449,7 +495,25 @@ int main(int argc, char** argv) {
   regress_sub->add_option("--baselines", regress_cmd.baselines, "Baselines file (default regress/baselines_<tier>.toml)");
   regress_sub->add_flag("--force", regress_cmd.force, "Run again even when current run files exist");
   regress_sub->add_flag("--no-plot", regress_no_plot, "Do not draw regress.png");
+  regress_sub->add_option("--jobs,-j", regress_cmd.jobs,
+                          "Runs at once, in child processes (default: in this process; a shard: the cores it may use)")
+      ->check(CLI::PositiveNumber);
+  app::ArrayOptions regress_array;
+  app::add_array_options(regress_sub, regress_array);
 
+  // A mistyped subcommand is named, with the closest one (CLI11 would only say that one is
+  // required).
+  if (argc > 1 && argv[1][0] != '-') {
+    std::vector<std::string> names;
+    for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
+    if (std::find(names.begin(), names.end(), argv[1]) == names.end()) {
+      const std::string close = config::suggest_name(argv[1], names);
+      std::cerr << "pbdbench: unknown command '" << argv[1] << "'"
+                << (close.empty() ? "" : " (did you mean '" + close + "'?)") << "; the commands are "
+                << fmt::format("{}", fmt::join(names, ", ")) << " (pbdbench --help)\n";
+      return kExitBadInput;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -458,8 +522,8 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*run) return cmd_run(scenario, solver, sets, out, quiet);
-    if (*sweep) return cmd_sweep(file, out, jobs, force, shard, sets, quiet);
+    if (*run) return cmd_run(scenario, solver, sets, out, quiet, force);
+    if (*sweep) return cmd_sweep(file, out, jobs, force, sweep_array, sets, quiet, argc, argv);
     if (app.got_subcommand("list")) return cmd_list();
     if (*describe) return cmd_describe(scenario, sets, kind);
     if (*summary) return cmd_summary(files, index_dir, csv);
@@ -467,23 +531,45 @@ int main(int argc, char** argv) {
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);
     if (*regress_sub) {
       regress_cmd.tier = regress_tier == "full" ? experiments::Tier::Full : experiments::Tier::Quick;
+      regress_cmd.executable = self_executable();
+      app::parse_array_options(regress_array, regress_cmd.shard_index, regress_cmd.shard_count);
+      regress_cmd.merge_shards = regress_array.merge;
+      if (regress_array.slurm > 0) {
+        const regress::RegressShards plan = regress::regress_shards(regress_cmd, regress_array.slurm);
+        return app::submit_to_slurm("regress", regress_array, regress::regress_out(regress_cmd) / "runs", plan.shard,
+                                    plan.to_make, argc, argv, std::cout);
+      }
       const regress::RegressOutcome r = regress::run_regress(regress_cmd, std::cout, std::cerr);
+      if (!r.unfinished.empty()) {
+        app::report_unfinished("regress", r.unfinished, regress_cmd.merge_shards, r.runs, std::cerr);
+        return kExitFailure;
+      }
+      if (r.out.empty()) return r.failed_runs > 0 ? kExitFailure : kExitOk;  // a shard
       if (r.updated) return kExitOk;
       if (!regress_no_plot) {
-        const fs::path script = fs::path(build_info().source_dir) / "scripts" / "plot_regress.py";
+        const fs::path script = script_path("plot_regress.py");
         if (run_python(script, {(r.out / "regress.h5").string(), (r.out / "regress.png").string()}) != 0)
           std::cerr << "pbdbench: the plot was not drawn (" << script << ")\n";
       }
       return r.worse > 0 || r.bit_differences > 0 ? kExitRegression : kExitOk;
     }
+    if (*register_sub) {
+      register_cmd.kind = register_what == "claims" ? experiments::ExperimentKind::Claim
+                                                    : experiments::ExperimentKind::Reproduction;
+      experiments::run_register(register_cmd, std::cout);
+      return kExitOk;
+    }
     if (*claims_sub || *paper_sub) {
       claims_cmd.kind = *claims_sub ? experiments::ExperimentKind::Claim : experiments::ExperimentKind::Reproduction;
       claims_cmd.tier = tier == "quick" ? experiments::Tier::Quick : experiments::Tier::Full;
       claims_cmd.executable = self_executable();
-      if (!experiment_shard.empty()) parse_shard(experiment_shard, claims_cmd.shard_index, claims_cmd.shard_count);
-      if (slurm > 0) {
-        std::cout << experiments::slurm_script(claims_cmd, slurm);
-        return kExitOk;
+      app::parse_array_options(experiment_array, claims_cmd.shard_index, claims_cmd.shard_count);
+      claims_cmd.merge_shards = experiment_array.merge;
+      if (experiment_array.slurm > 0) {
+        const experiments::ShardPlan plan = experiments::shard_plan(claims_cmd, experiment_array.slurm);
+        return app::submit_to_slurm(*claims_sub ? "claims" : "paper", experiment_array,
+                                    experiments::runs_folder(claims_cmd), plan.shard, plan.to_make, argc, argv,
+                                    std::cout, "runs and timing groups");
       }
       return cmd_claims(claims_cmd, !no_plots, argc, argv);
     }
@@ -505,6 +591,9 @@ int main(int argc, char** argv) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const CompareInputError& e) {
+    std::cerr << "pbdbench: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const OutputRefused& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const std::exception& e) {

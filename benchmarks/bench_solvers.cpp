@@ -122,7 +122,6 @@ void BM_Solver(benchmark::State& bench, SolverCase c) {
   o.order = c.order;
   o.precision = c.precision;
   o.threads = c.threads;
-  if (std::getenv("TMP_NORES")) o.xpbd_residuals = false;
   auto solver = make_solver(o, model);
   State s = w.state;
   s.lambda.assign(model.constraints.size(), 0.0);

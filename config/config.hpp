@@ -117,7 +117,12 @@ struct Override {
 // Parses "path=value"; throws ConfigError (file "--set ...") when there is no '='.
 Override parse_override(const std::string& text);
 
-// Where scenario names are looked up: $PBDBENCH_SCENARIOS when set, else <source dir>/scenarios.
+// The candidate closest to `word` when it is close enough to be a likely typo, else "" (for
+// "did you mean" in messages about names other than keys: subcommands, solvers).
+std::string suggest_name(const std::string& word, const std::vector<std::string>& candidates);
+
+// Where scenario names are looked up: $PBDBENCH_SCENARIOS when set, else data_dir()/scenarios
+// (config/data_dir.hpp).
 std::filesystem::path scenarios_dir();
 
 // A path to an existing file, or a catalog name ("hanging_cloth" -> scenarios/hanging_cloth.toml).

@@ -1,6 +1,7 @@
 // Loading a scenario: TOML parsing, --set overrides, validation against the schema, the Config
 // accessors, to_toml, and the option structs a run needs.
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <deque>
@@ -11,6 +12,7 @@
 #include <toml++/toml.h>
 
 #include "config/config.hpp"
+#include "config/data_dir.hpp"
 #include "config/internal.hpp"
 
 namespace pbdbench::config {
@@ -18,6 +20,8 @@ namespace pbdbench::config {
 namespace {
 
 using detail::find_key;
+
+constexpr double kMaxSteps = 1e12;  // steps a run may plan (a long holds them; 11 days at 1 us a step)
 using detail::format_double;
 using detail::format_value;
 using detail::suggest;
@@ -287,8 +291,15 @@ bool is_table_path(const std::string& path) {
   return false;
 }
 
+// A key as shown in a message: a very long one is cut, with its length.
+std::string shown_key(const std::string& name) {
+  constexpr std::size_t kShown = 80;
+  if (name.size() <= kShown) return name;
+  return name.substr(0, kShown) + fmt::format("... ({} characters)", name.size());
+}
+
 std::string unknown_message(const std::string& name, const std::string& close) {
-  std::string message = "unknown key '" + name + "'";
+  std::string message = "unknown key '" + shown_key(name) + "'";
   if (!close.empty()) message += " (did you mean '" + close + "'?)";
   return message;
 }
@@ -344,12 +355,13 @@ class Loader {
       if (dot == std::string::npos || !numeric)
         fail(source, o.path,
              "a collider key is addressed as collider.<index>.<key>, e.g. collider.0.offset");
-      const std::size_t i = std::stoul(index_text);
-      if (i >= colliders_.size())
+      std::size_t i = 0;
+      const auto [end, ec] = std::from_chars(index_text.data(), index_text.data() + index_text.size(), i);
+      if (ec != std::errc() || end != index_text.data() + index_text.size() || i >= colliders_.size())
         fail(source, o.path,
              fmt::format("there is no collider {}: the file declares {} [[collider]] entr{}; to add "
                          "a collider, declare it in the file",
-                         i, colliders_.size(), colliders_.size() == 1 ? "y" : "ies"));
+                         shown_key(index_text), colliders_.size(), colliders_.size() == 1 ? "y" : "ies"));
       raw.path = "collider." + rest.substr(dot + 1);
       raw.name = o.path;
       if (!find_key(collider_keys(), raw.path)) {
@@ -521,8 +533,60 @@ class Loader {
     fail(raw.source, raw.name, unknown_message(raw.name, suggest(raw.path, valid)));
   }
 
+  // Physical quantities beyond what double arithmetic can carry through a run: a product of
+  // two such values (m g h, 1/m, |x|^2) overflows or underflows. Every key of the scene, the
+  // colliders and gravity with units (other than 1 and s: times such as a motion's stop may be
+  // "never", 1e300) must be 0 or have a magnitude in [kTiny, kHuge] (vectors: each component at
+  // most kHuge).
+  void check_magnitudes(const std::map<std::string, Entry>& entries, const std::vector<KeySpec>& a,
+                        const std::vector<KeySpec>& b, const std::string& prefix) const {
+    constexpr double kHuge = 1e100, kTiny = 1e-100;
+    for (const auto& [path, e] : entries) {
+      const KeySpec* spec = find_key(a, path);
+      if (!spec) spec = find_key(b, path);
+      const bool physical = path == "gravity" || path.rfind("scene.", 0) == 0 || path.rfind("collider.", 0) == 0;
+      if (!spec || !physical || spec->units.empty() || spec->units == "1" || spec->units == "s") continue;
+      std::vector<double> values;
+      if (const auto* d = std::get_if<double>(&e.value)) values.push_back(*d);
+      else if (const auto* v = std::get_if<std::vector<double>>(&e.value)) values = *v;
+      const bool vector = std::holds_alternative<std::vector<double>>(e.value);
+      for (double v : values) {
+        const double m = std::abs(v);
+        // A tiny component of a vector is harmless; a tiny scalar (a mass, a length) is divided by.
+        if (m == 0.0 || ((vector || m >= kTiny) && m <= kHuge)) continue;
+        const std::string name = prefix.empty() ? path : prefix + path.substr(path.find('.') + 1);
+        fail(e.source.file.empty() ? Source{file_name_, 0} : e.source, name,
+             fmt::format("{} = {} {}: a magnitude {} than {:g} {} cannot be simulated in double "
+                         "precision (its products overflow or underflow)",
+                         name, format_value(e.value), spec->units, m > kHuge ? "larger" : "smaller",
+                         m > kHuge ? kHuge : kTiny, spec->units));
+      }
+    }
+  }
+
+  // The run as planned: a step count that is a positive whole number a long can hold.
+  void check_steps(const Config& config) const {
+    const Entry& dt = config.at("time.dt");
+    const Entry& duration = config.at("time.duration");
+    const double ratio = config.get_double("time.duration") / config.get_double("time.dt");
+    auto where = [&](const Entry& e) { return e.source.file.empty() ? Source{file_name_, 0} : e.source; };
+    const std::string values = fmt::format("time.duration = {} s, time.dt = {} s",
+                                           format_value(duration.value), format_value(dt.value));
+    if (!(ratio >= 0.5))
+      fail(where(duration), "time.duration",
+           values + ": the run would take no step (the step count is duration / dt rounded, here " +
+               format_double(ratio) + ")");
+    if (!(ratio <= kMaxSteps))
+      fail(where(dt), "time.dt",
+           fmt::format("{}: {:.3g} steps, more than the {:g} a run may plan", values, ratio, kMaxSteps));
+  }
+
   // Rules that involve a key's value beyond its own type and bounds.
   void check_cross_keys(const Config& config) const {
+    check_magnitudes(config.entries, common_keys(), detail::find_kind(config.get_string("scene.kind"))->keys, "");
+    for (std::size_t i = 0; i < config.colliders.size(); ++i)
+      check_magnitudes(config.colliders[i], collider_keys(), {}, "collider." + std::to_string(i) + ".");
+    check_steps(config);
     auto nonzero = [](const Entry& e, const std::string& name, const std::string& why) {
       const auto& v = std::get<std::vector<double>>(e.value);
       if (v[0] == 0.0 && v[1] == 0.0 && v[2] == 0.0)
@@ -548,9 +612,14 @@ class Loader {
                              "scene.file: a mesh scene needs a mesh file");
       const std::filesystem::path resolved = config.file.parent_path() / name;
       std::error_code ec;
-      if (!std::filesystem::is_regular_file(resolved, ec))
+      const std::filesystem::file_status st = std::filesystem::status(resolved, ec);
+      if (!std::filesystem::exists(st))
         fail(e.source, "scene.file",
              fmt::format("scene.file = '{}': no such file (looked for {})", name, resolved.string()));
+      if (!std::filesystem::is_regular_file(st))
+        fail(e.source, "scene.file",
+             fmt::format("scene.file = '{}': {} is {}, not a mesh file", name, resolved.string(),
+                         std::filesystem::is_directory(st) ? "a directory" : "not a regular file"));
     }
   }
 
@@ -587,7 +656,7 @@ Override parse_override(const std::string& text) {
 
 std::filesystem::path scenarios_dir() {
   if (const char* env = std::getenv("PBDBENCH_SCENARIOS"); env && *env) return env;
-  return std::filesystem::path(PBDBENCH_SOURCE_DIR) / "scenarios";
+  return data_dir() / "scenarios";
 }
 
 std::filesystem::path resolve_scenario(const std::string& name_or_path) {
@@ -627,6 +696,18 @@ Config load(const std::string& name_or_path, const std::vector<Override>& overri
   if (!in) throw ConfigError(Source{path.string(), 0}, "", "cannot read the scenario file");
   std::ostringstream text;
   text << in.rdbuf();
+  // An empty file is not a scenario (it would run a default particle). Text that is not TOML
+  // is reported by the loader with its line.
+  bool empty = true;
+  try {
+    empty = toml::parse(std::string_view(text.str()), std::string_view(path.string())).empty();
+  } catch (const toml::parse_error&) {
+    empty = false;
+  }
+  if (empty)
+    throw ConfigError(Source{path.string(), 0}, "",
+                      "the scenario file has no keys (it is empty, or only whitespace and comments): "
+                      "nothing to run; a scenario sets at least [scene] kind");
   return load_text(text.str(), path, overrides);
 }
 

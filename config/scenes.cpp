@@ -116,6 +116,7 @@ class SceneBuilder {
       else if (kind_ == "chain") chain();
       else if (kind_ == "cloth") cloth();
       else if (kind_ == "tet_block") tet_block();
+      else if (kind_ == "tri_block") tri_block();
       else if (kind_ == "spheres") spheres();
       else if (kind_ == "mesh") mesh();
       else throw ConfigError(responsible_, "scene.kind", "scene.kind = '" + kind_ + "' is not a scene kind");
@@ -306,6 +307,26 @@ class SceneBuilder {
     velocity_ = vec(m_, "scene.velocity");
   }
 
+  // scene.fixed of a box (tet_block) or rectangle (tri_block) spanning `extent` from `origin`:
+  // the particles of r on that face or edge are pinned, those on the opposite one are the tip (a
+  // beam's free end, Model::observables).
+  void fix_side(const Vec3& origin, const Vec3& extent, const ParticleRange& r) {
+    std::vector<int> pins;
+    const std::string& side = word(m_, "scene.fixed");
+    if (side != "none") {
+      const int axis = side[0] - 'x';
+      const bool at_max = side.substr(2) == "max";
+      const double target = origin[axis] + (at_max ? extent[axis] : 0.0);
+      const double opposite = origin[axis] + (at_max ? 0.0 : extent[axis]);
+      const double tolerance = 1e-9 * extent.maxCoeff();  // the generators' vertices are exact up to rounding
+      for (int p = r.begin; p < r.end; ++p) {
+        if (std::abs(model_.rest_positions(p, axis) - target) <= tolerance) pins.push_back(p);
+        if (std::abs(model_.rest_positions(p, axis) - opposite) <= tolerance) model_.observables.tip.push_back(p);
+      }
+    }
+    pin(pins);
+  }
+
   void tet_block() {
     const auto& cells = c_.get_ints("scene.cells");
     TetBlockSpec s;
@@ -327,22 +348,7 @@ class SceneBuilder {
     const ParticleRange r = add_tet_block(model_, s);
     add_material(first_tet, "the tet_block scene");
 
-    // The fixed face is pinned; the particles of the opposite face are the tip (a beam's free
-    // end, Model::observables).
-    std::vector<int> pins;
-    const std::string& face = word(m_, "scene.fixed");
-    if (face != "none") {
-      const int axis = face[0] - 'x';
-      const bool at_max = face.substr(2) == "max";
-      const double target = s.origin[axis] + (at_max ? s.size[axis] : 0.0);
-      const double opposite = s.origin[axis] + (at_max ? 0.0 : s.size[axis]);
-      const double tolerance = 1e-9 * s.size.maxCoeff();  // the generator's vertices are exact up to rounding
-      for (int p = r.begin; p < r.end; ++p) {
-        if (std::abs(model_.rest_positions(p, axis) - target) <= tolerance) pins.push_back(p);
-        if (std::abs(model_.rest_positions(p, axis) - opposite) <= tolerance) model_.observables.tip.push_back(p);
-      }
-    }
-    pin(pins);
+    fix_side(s.origin, s.size, r);
     velocity_ = vec(m_, "scene.velocity");
   }
 
@@ -441,13 +447,50 @@ class SceneBuilder {
     velocity_ = vec(m_, "scene.velocity");
   }
 
+  void tri_block() {
+    const auto& cells = c_.get_ints("scene.cells");
+    const auto& size = c_.get_floats("scene.size");
+    if (cells[0] * cells[1] > 2'000'000)
+      refuse("scene.cells", fmt::format("scene.cells = [{}, {}] makes {} cells; at most 2000000 are "
+                                        "allowed",
+                                        cells[0], cells[1], cells[0] * cells[1]));
+    TriBlockSpec s;
+    s.cells = {static_cast<int>(cells[0]), static_cast<int>(cells[1])};
+    s.size = {size[0], size[1]};
+    s.origin = vec(m_, "scene.origin");
+    s.density = real(m_, "scene.density");
+    s.thickness = real(m_, "scene.thickness");
+    s.radius = real(m_, "scene.radius");
+    s.edges = flag(m_, "scene.edges");
+    s.edge = params(m_, "scene.edge");
+    const std::size_t first_triangle = model_.triangles.size();
+    const ParticleRange r = add_tri_block(model_, s);
+    if (word(m_, "scene.material") == "stvk") {
+      const std::vector<std::array<int, 3>> triangles(
+          model_.triangles.begin() + static_cast<std::ptrdiff_t>(first_triangle), model_.triangles.end());
+      try {
+        fem::add_fem_triangles(model_, triangles, Material::StVK, real(m_, "scene.youngs_modulus"),
+                               real(m_, "scene.poisson_ratio"), s.thickness);
+      } catch (const std::invalid_argument& e) {
+        refuse("scene.material", fmt::format("scene.material = 'stvk' cannot be built on the "
+                                             "tri_block scene: {}",
+                                             e.what()));
+      }
+    }
+    fix_side(s.origin, Vec3(s.size[0], s.size[1], 0.0), r);
+    velocity_ = vec(m_, "scene.velocity");
+  }
+
   // scene.material: one FEM element per tet of the body just built (its tets are those from
   // first_tet on), with scene.youngs_modulus and scene.poisson_ratio (core/fem.hpp). A tet the
   // elements refuse (negatively oriented, degenerate) is refused naming scene.material.
   void add_material(std::size_t first_tet, const std::string& subject, const std::string& hint = "") {
     const std::string& name = word(m_, "scene.material");
     if (name == "none") return;
-    const Material material = name == "corotated" ? Material::Corotated : Material::StableNeoHookean;
+    const Material material = name == "corotated" ? Material::Corotated
+                              : name == "stvk"    ? Material::StVK
+                              : name == "linear"  ? Material::Linear
+                                                  : Material::StableNeoHookean;
     const std::vector<std::array<int, 4>> tets(model_.tets.begin() + static_cast<std::ptrdiff_t>(first_tet),
                                                model_.tets.end());
     try {

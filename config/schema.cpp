@@ -125,18 +125,30 @@ std::vector<KeySpec> group_keys(const std::string& prefix, const std::string& wh
   };
 }
 
-// The FEM material keys of a tet body (core/fem.hpp, fem::add_fem_elements).
-std::vector<KeySpec> fem_keys(const std::string& what) {
+// Young's modulus (default `youngs_modulus` Pa) and Poisson's ratio of an FEM material.
+std::vector<KeySpec> modulus_keys(double youngs_modulus) {
   return {
-      text("scene.material", "none", {"none", "stable_neo_hookean", "corotated"},
-           what + ": a hyperelastic FEM element per tet (core/fem.hpp): stable_neo_hookean (xpbd "
-           "simulates it as two constraints per tet, Macklin and Mueller 2021), corotated (reference "
-           "solvers only), or none; pbd and pbd-seed refuse either; needs positively oriented tets"),
-      real("scene.youngs_modulus", 1e6, "Pa", above(0),
+      real("scene.youngs_modulus", youngs_modulus, "Pa", above(0),
            "Young's modulus E of the material (used when scene.material is not none)"),
       real("scene.poisson_ratio", 0.3, "1", within(0, 0.499),
            "Poisson's ratio nu of the material (used when scene.material is not none)"),
   };
+}
+
+// The FEM material keys of a tet body (core/fem.hpp, fem::add_fem_elements).
+std::vector<KeySpec> fem_keys(const std::string& what) {
+  std::vector<KeySpec> keys = {
+      text("scene.material", "none", {"none", "stable_neo_hookean", "corotated", "stvk", "linear"},
+           what + ": a hyperelastic FEM element per tet (core/fem.hpp): stable_neo_hookean (xpbd "
+           "simulates it as two constraints per tet, Macklin and Mueller 2021), stvk (St Venant-"
+           "Kirchhoff: the linear isotropic law on the Green strain) or linear (small-strain linear "
+           "elasticity, not invariant under rotation), which xpbd simulates as one strain-vector "
+           "constraint per tet with the compliance matrix of Macklin et al. 2016, sec. 6.3, "
+           "corotated (reference solvers only), or none; pbd and pbd-seed refuse them all; needs "
+           "positively oriented tets"),
+  };
+  append(keys, modulus_keys(1e6));
+  return keys;
 }
 
 const std::vector<std::string> kMotionSuffixes = {"",       "_velocity",  "_amplitude", "_axis",
@@ -331,6 +343,40 @@ SceneKindInfo tet_block_kind() {
           std::move(keys)};
 }
 
+SceneKindInfo tri_block_kind() {
+  const TriBlockSpec t;
+  std::vector<KeySpec> keys = {
+      ints("scene.cells", {t.cells[0], t.cells[1]}, 2, within(1, 10000),
+           "rectangular cells along x and y [cx, cy], each split into two triangles along a "
+           "diagonal that alternates from cell to cell"),
+      floats("scene.size", {t.size[0], t.size[1]}, 2, "m", above(0),
+             "extent of the rectangle along x and y [w, h]; it lies in the xy plane"),
+      vec3("scene.origin", t.origin, "m", kAny, "the rectangle's minimum corner"),
+      real("scene.density", t.density, "kg/m^3", above(0),
+           "density; each triangle's mass (density x thickness x area) is lumped to its vertices"),
+      real("scene.thickness", t.thickness, "m", above(0),
+           "extent out of the plane that the mass and the elements' energy stand for (a 2D body "
+           "per this much depth; the motion does not depend on it)"),
+      real("scene.radius", t.radius, "m", above(0), "radius of each particle (contacts only)"),
+      text("scene.fixed", "none", {"none", "x_min", "x_max", "y_min", "y_max"},
+           "the edge whose particles are pinned, or none; the opposite edge is the observed tip"),
+      boolean("scene.edges", t.edges, "add distance constraints on every triangle edge"),
+      text("scene.material", "stvk", {"none", "stvk"},
+           "a St Venant-Kirchhoff FEM element per triangle (core/fem.hpp: the 2 x 2 Green strain, "
+           "plane strain in the plane), which xpbd simulates as one strain-vector constraint per "
+           "triangle with the compliance matrix of Macklin et al. 2016, eqs. 27 and 28; or none"),
+  };
+  append(keys, modulus_keys(1e5));
+  append(keys, group_keys("scene.edge", "edge constraints", "m/N", ConstraintParams{1e-6, 1.0, 0.0}));
+  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kAny,
+                      "initial velocity of the free particles"));
+  append(keys, motion_keys("scene.pin_motion", "the pinned edge"));
+  return {"tri_block",
+          "a 2D rectangle of triangles in the xy plane with StVK FEM elements (plane strain) and/or "
+          "edge constraints",
+          std::move(keys)};
+}
+
 SceneKindInfo spheres_kind() {
   const PackedSpheresSpec p;
   return {"spheres",
@@ -409,7 +455,7 @@ SceneKindInfo mesh_kind() {
 const std::vector<SceneKindInfo>& scene_kinds() {
   static const std::vector<SceneKindInfo> kinds = {particle_kind(), spring_kind(),   pendulum_kind(),
                                                    chain_kind(),    cloth_kind(),    tet_block_kind(),
-                                                   spheres_kind(),  mesh_kind()};
+                                                   tri_block_kind(), spheres_kind(), mesh_kind()};
   return kinds;
 }
 
@@ -692,7 +738,11 @@ std::string suggest(const std::string& word, const std::vector<std::string>& can
   const std::size_t limit = std::clamp<std::size_t>(word.size() / 3, 1, 3);
   std::string best;
   std::size_t best_d = limit + 1;
+  // The distance is at least the difference in length: only candidates within the limit are
+  // compared, so that the search stays cheap whatever the word (a 1 MiB key is refused at once).
+  auto far = [](std::size_t a, std::size_t b, std::size_t limit) { return (a > b ? a - b : b - a) > limit; };
   for (const std::string& c : candidates) {
+    if (far(word.size(), c.size(), limit)) continue;
     const std::size_t d = edit_distance(word, c);
     if (d < best_d) {
       best_d = d;
@@ -705,7 +755,9 @@ std::string suggest(const std::string& word, const std::vector<std::string>& can
   const std::size_t tail_limit = std::clamp<std::size_t>(tail.size() / 3, 0, 3);
   best_d = tail_limit + 1;
   for (const std::string& c : candidates) {
-    const std::size_t d = edit_distance(tail, last_component(c));
+    const std::string c_tail = last_component(c);
+    if (far(tail.size(), c_tail.size(), tail_limit)) continue;
+    const std::size_t d = edit_distance(tail, c_tail);
     if (d < best_d) {
       best_d = d;
       best = c;
@@ -799,5 +851,9 @@ std::string type_label(const KeySpec& k) {
 }
 
 }  // namespace detail
+
+std::string suggest_name(const std::string& word, const std::vector<std::string>& candidates) {
+  return detail::suggest(word, candidates);
+}
 
 }  // namespace pbdbench::config

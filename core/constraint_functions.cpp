@@ -59,6 +59,8 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x) {
       return eval_bending(x.row(p[0]), x.row(p[1]), x.row(p[2]), x.row(p[3]), c.rest);
     case ConstraintKind::FemDeviatoric:
     case ConstraintKind::FemHydrostatic:
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet:
       break;  // needs the element: eval_constraint(model, c, x)
   }
   ConstraintEval none;
@@ -74,6 +76,14 @@ ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Po
     return none;
   }
   const FemElement& e = model.elements[static_cast<size_t>(c.element)];
+  if (is_strain_kind(c.kind)) {
+    // A vector constraint (fem::eval_strain): C is the norm of its strain vector, and there is no
+    // one gradient to report.
+    ConstraintEval ev;
+    ev.C = fem::eval_strain(e, x).C.norm();
+    ev.valid = false;
+    return ev;
+  }
   if (c.kind == ConstraintKind::FemHydrostatic) return fem::eval_hydrostatic(e, x, c.rest);
   ConstraintEval ev = fem::eval_deviatoric(e, x);  // sqrt(tr F^T F), its rest is 0
   ev.C -= c.rest;
@@ -101,7 +111,7 @@ void constraint_values(const Model& model, const Points& x, std::vector<double>&
       L rest;
       rest.set(0, a.rest);
       rest.set(1, b.rest);
-      L value;
+      L value(0.0);
       switch (a.kind) {
         case ConstraintKind::Distance:
           value = distance_stencil(lanes(a, b, 0), lanes(a, b, 1), rest).C;
@@ -114,7 +124,9 @@ void constraint_values(const Model& model, const Points& x, std::vector<double>&
           break;
         case ConstraintKind::FemDeviatoric:
         case ConstraintKind::FemHydrostatic:
-          break;
+        case ConstraintKind::FemStrainTriangle:
+        case ConstraintKind::FemStrainTet:
+          break;  // not paired (is_fem_kind)
       }
       C[j] = value[0];
       C[j + 1] = value[1];
@@ -134,6 +146,8 @@ double normalized_error(const Constraint& c, double C) {
     case ConstraintKind::Bending:
     case ConstraintKind::FemDeviatoric:
     case ConstraintKind::FemHydrostatic:
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet:
       return std::abs(C);
   }
   return std::abs(C);

@@ -47,7 +47,8 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x);
 
 // Evaluate any model constraint on positions x (n x 3): the FEM kinds through their element
 // model.elements[c.element] (fem::eval_deviatoric, fem::eval_hydrostatic in core/fem.hpp; C is
-// the measured value minus c.rest), the others as the overload above. valid = false, C = 0 when a
+// the measured value minus c.rest; the strain kinds, vector constraints, report the norm of
+// fem::eval_strain's vector as C with valid = false), the others as the overload above. valid = false, C = 0 when a
 // FEM-kind constraint's element index is out of range. (The overload above, without the model,
 // reports the FEM kinds as C = 0, valid = false.)
 ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Points& x);

@@ -29,13 +29,31 @@ enum class ConstraintKind : std::uint8_t {
                    // core/fem.hpp up to a constant (Macklin and Mueller 2021). These two are
                    // energy terms, not targets: their C is not zero at rest, and the constraint
                    // error metrics leave them out.
+  FemStrainTriangle,  // C = the strain vector of Model::elements[element], a triangle:
+                      // (E00, E11, sqrt 2 E01) with E its 2 x 2 strain (Mandel's form of
+                      // Voigt's vector, so that E : E = |C|^2)                       (1)
+  FemStrainTet,       // the same for a tet: (E00, E11, E22, sqrt 2 E12, sqrt 2 E02, sqrt 2 E01)
+                      // Macklin et al. 2016, sec. 6.3, eqs. 27 and 28: the strain components of
+                      // an element are one vector constraint with the compliance matrix
+                      // alpha = K^-1 / V, K the linear isotropic stiffness, so that
+                      // C^T alpha^-1 C / 2 = V Psi (StVK: Green strain; linear: small strain).
+                      // The matrix comes from the element (fem::strain_compliance); the scalar
+                      // `compliance` holds its deviatoric entry 1 / (2 mu V) for the record. Energy
+                      // terms, like the two above: left out of the constraint error metrics.
 };
 
-inline constexpr int kConstraintKindCount = 5;
+inline constexpr int kConstraintKindCount = 7;
 
-// True for the kinds that stand for an FEM element's energy (FemDeviatoric, FemHydrostatic).
+// True for the kinds that stand for an FEM element's energy (FemDeviatoric, FemHydrostatic,
+// FemStrainTriangle, FemStrainTet).
 constexpr bool is_fem_kind(ConstraintKind kind) {
-  return kind == ConstraintKind::FemDeviatoric || kind == ConstraintKind::FemHydrostatic;
+  return kind == ConstraintKind::FemDeviatoric || kind == ConstraintKind::FemHydrostatic ||
+         kind == ConstraintKind::FemStrainTriangle || kind == ConstraintKind::FemStrainTet;
+}
+
+// True for the vector (strain) kinds, whose multiplier is a vector (fem::eval_strain).
+constexpr bool is_strain_kind(ConstraintKind kind) {
+  return kind == ConstraintKind::FemStrainTriangle || kind == ConstraintKind::FemStrainTet;
 }
 
 // Number of particles a constraint of this kind acts on.
@@ -46,11 +64,14 @@ constexpr int arity(ConstraintKind kind) {
     case ConstraintKind::Bending: return 4;
     case ConstraintKind::FemDeviatoric: return 4;
     case ConstraintKind::FemHydrostatic: return 4;
+    case ConstraintKind::FemStrainTriangle: return 3;
+    case ConstraintKind::FemStrainTet: return 4;
   }
   return 0;
 }
 
-// "distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic"
+// "distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic", "fem_strain_triangle",
+// "fem_strain_tet"
 const char* to_string(ConstraintKind kind);
 
 }  // namespace pbdbench

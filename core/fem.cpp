@@ -1,5 +1,5 @@
 // The material part of core/fem.hpp: energy densities, first Piola-Kirchhoff stresses and their
-// derivatives for the two materials, and the element energy, gradient and Hessian.
+// derivatives for the materials, and the element energy, gradient and Hessian.
 // (lame, snh_lambda, deformation_gradient, the XPBD constraints and add_fem_elements are in
 // core/fem_constraints.cpp.)
 //
@@ -11,6 +11,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace pbdbench::fem {
 
@@ -108,6 +110,51 @@ Mat9 rotation_derivative(const RotationSvd& s) {
   return d;
 }
 
+// StVK for a 3 x D deformation gradient (D = 3: a tet, D = 2: a triangle), E = (F^T F - I) / 2:
+//   Psi = mu E : E + lambda/2 tr(E)^2,   P = F S,   S = 2 mu E + lambda tr(E) I
+//   dP = dF S + F dS,   dS = 2 mu dE + lambda tr(dE) I,   dE = (F^T dF + dF^T F) / 2
+// dP/dF is built column by column: column (a + 3 c) is vec(dP) for dF = e_a e_c^T.
+template <int D>
+double stvk_density(double mu, double lambda, const Eigen::Matrix<double, 3, D>& F) {
+  const Eigen::Matrix<double, D, D> E =
+      0.5 * (F.transpose() * F - Eigen::Matrix<double, D, D>::Identity());
+  const double tr = E.trace();
+  return mu * E.squaredNorm() + 0.5 * lambda * tr * tr;
+}
+
+template <int D>
+Eigen::Matrix<double, 3, D> stvk_piola(double mu, double lambda, const Eigen::Matrix<double, 3, D>& F) {
+  using MatD = Eigen::Matrix<double, D, D>;
+  const MatD E = 0.5 * (F.transpose() * F - MatD::Identity());
+  const MatD S = 2.0 * mu * E + lambda * E.trace() * MatD::Identity();
+  return F * S;
+}
+
+template <int D>
+Eigen::Matrix<double, 3 * D, 3 * D> stvk_derivative(double mu, double lambda,
+                                                    const Eigen::Matrix<double, 3, D>& F) {
+  using MatD = Eigen::Matrix<double, D, D>;
+  using Mat3D = Eigen::Matrix<double, 3, D>;
+  const MatD E = 0.5 * (F.transpose() * F - MatD::Identity());
+  const MatD S = 2.0 * mu * E + lambda * E.trace() * MatD::Identity();
+  Eigen::Matrix<double, 3 * D, 3 * D> d;
+  for (int c = 0; c < D; ++c)
+    for (int a = 0; a < 3; ++a) {
+      Mat3D dF = Mat3D::Zero();
+      dF(a, c) = 1.0;
+      const MatD dE = 0.5 * (F.transpose() * dF + dF.transpose() * F);
+      const MatD dS = 2.0 * mu * dE + lambda * dE.trace() * MatD::Identity();
+      const Mat3D dP = dF * S + F * dS;
+      d.col(a + 3 * c) = Eigen::Map<const Eigen::Matrix<double, 3 * D, 1>>(dP.data());
+    }
+  return d;
+}
+
+// Linear elasticity, e = (F + F^T) / 2 - I:
+//   Psi = mu e : e + lambda/2 tr(e)^2,   P = 2 mu e + lambda tr(e) I,
+//   dP = mu (dF + dF^T) + lambda tr(dF) I   (constant).
+Mat3 small_strain(const Mat3& F) { return 0.5 * (F + F.transpose()) - Mat3::Identity(); }
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -138,6 +185,12 @@ double energy_density(Material material, double mu, double lambda, const Mat3& F
       const Mat3 R = s.U * s.V.transpose();
       return mu * (F - R).squaredNorm() + 0.5 * lambda * (J - 1.0) * (J - 1.0);
     }
+    case Material::StVK:
+      return stvk_density<3>(mu, lambda, F);
+    case Material::Linear: {
+      const Mat3 e = small_strain(F);
+      return mu * e.squaredNorm() + 0.5 * lambda * e.trace() * e.trace();
+    }
   }
   return 0.0;
 }
@@ -155,6 +208,12 @@ Mat3 first_piola(Material material, double mu, double lambda, const Mat3& F) {
       const RotationSvd s = rotation_svd(F);
       const Mat3 R = s.U * s.V.transpose();
       return 2.0 * mu * (F - R) + lambda * (J - 1.0) * cof;
+    }
+    case Material::StVK:
+      return stvk_piola<3>(mu, lambda, F);
+    case Material::Linear: {
+      const Mat3 e = small_strain(F);
+      return 2.0 * mu * e + lambda * e.trace() * Mat3::Identity();
     }
   }
   return Mat3::Zero();
@@ -181,8 +240,46 @@ Mat9 stress_derivative(Material material, double mu, double lambda, const Mat3& 
       d.diagonal().array() += 2.0 * mu;
       return d;
     }
+    case Material::StVK:
+      return stvk_derivative<3>(mu, lambda, F);
+    case Material::Linear: {
+      Mat9 d = Mat9::Zero();
+      for (int c = 0; c < 3; ++c)
+        for (int a = 0; a < 3; ++a) {
+          d(a + 3 * c, a + 3 * c) += mu;  // mu dF
+          d(c + 3 * a, a + 3 * c) += mu;  // mu dF^T
+        }
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) d(a + 3 * a, b + 3 * b) += lambda;  // lambda tr(dF) I
+      return d;
+    }
   }
   return Mat9::Zero();
+}
+
+namespace {
+
+void require_triangle_material(Material material) {
+  if (material != Material::StVK)
+    throw std::invalid_argument(std::string("a triangle element of material ") + to_string(material) +
+                                ": only stvk has triangles");
+}
+
+}  // namespace
+
+double energy_density_2d(Material material, double mu, double lambda, const Mat32& F) {
+  require_triangle_material(material);
+  return stvk_density<2>(mu, lambda, F);
+}
+
+Mat32 first_piola_2d(Material material, double mu, double lambda, const Mat32& F) {
+  require_triangle_material(material);
+  return stvk_piola<2>(mu, lambda, F);
+}
+
+Mat6 stress_derivative_2d(Material material, double mu, double lambda, const Mat32& F) {
+  require_triangle_material(material);
+  return stvk_derivative<2>(mu, lambda, F);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -193,47 +290,44 @@ Mat9 stress_derivative(Material material, double mu, double lambda, const Mat3& 
 
 namespace {
 
-// b_v as the columns of a 3 x 4 matrix.
-Eigen::Matrix<double, 3, 4> shape_gradients(const FemElement& e) {
-  Eigen::Matrix<double, 3, 4> b;
-  b.rightCols<3>() = e.rest_inverse.transpose();
-  b.col(0) = -(b.col(1) + b.col(2) + b.col(3));
+// b_v as the columns of a D x (D + 1) matrix (D = 3: a tet, D = 2: a triangle, whose Dm^-1 is the
+// top-left 2 x 2 block of rest_inverse).
+template <int D>
+Eigen::Matrix<double, D, D + 1> shape_gradients(const FemElement& e) {
+  Eigen::Matrix<double, D, D + 1> b;
+  b.template rightCols<D>() = e.rest_inverse.template topLeftCorner<D, D>().transpose();
+  b.col(0) = -b.template rightCols<D>().rowwise().sum();
   return b;
 }
 
-}  // namespace
-
-double element_energy(const FemElement& e, const Points& x) {
-  const Mat3 F = deformation_gradient(e, x);
-  return e.rest_volume * (energy_density(e.material, e.mu, e.lambda, F) -
-                          energy_density(e.material, e.mu, e.lambda, Mat3::Identity()));
-}
-
-Vec12 element_gradient(const FemElement& e, const Points& x) {
-  const Mat3 F = deformation_gradient(e, x);
-  const Mat3 P = first_piola(e.material, e.mu, e.lambda, F);
-  const Eigen::Matrix<double, 3, 4> b = shape_gradients(e);
-  Vec12 g;
-  for (int v = 0; v < 4; ++v) g.segment<3>(3 * v) = e.rest_volume * (P * b.col(v));
+// V0 P b_v for each vertex, the rest of the 12 entries 0.
+template <int D>
+Vec12 gradient_from_stress(const FemElement& e, const Eigen::Matrix<double, 3, D>& P) {
+  const Eigen::Matrix<double, D, D + 1> b = shape_gradients<D>(e);
+  Vec12 g = Vec12::Zero();
+  for (int v = 0; v <= D; ++v) g.segment<3>(3 * v) = e.rest_volume * (P * b.col(v));
   return g;
 }
 
-Mat12 element_hessian(const FemElement& e, const Points& x, bool project_psd) {
-  const Mat3 F = deformation_gradient(e, x);
-  const Mat9 A = stress_derivative(e.material, e.mu, e.lambda, F);
-  const Eigen::Matrix<double, 3, 4> b = shape_gradients(e);
-  // V0 B^T A B without forming B: entry (3 v + a, 3 w + a') is
-  // V0 sum_{c, c'} b_v(c) A(a + 3 c, a' + 3 c') b_w(c'), i.e. for each pair (a, a') the 4 x 4
-  // matrix V0 b^T A_aa' b with A_aa'(c, c') = A(a + 3 c, a' + 3 c').
-  Mat12 H;
-  for (int a2 = 0; a2 < 3; ++a2)
-    for (int a = 0; a < 3; ++a) {
-      Mat3 Aaa;
-      for (int c2 = 0; c2 < 3; ++c2)
-        for (int c = 0; c < 3; ++c) Aaa(c, c2) = A(a + 3 * c, a2 + 3 * c2);
-      const Eigen::Matrix<double, 4, 4> block = e.rest_volume * (b.transpose() * (Aaa * b));
-      for (int w = 0; w < 4; ++w)
-        for (int v = 0; v < 4; ++v) H(3 * v + a, 3 * w + a2) = block(v, w);
+// V0 B^T A B without forming B: entry (3 v + a, 3 w + a') is
+// V0 sum_{c, c'} b_v(c) A(a + 3 c, a' + 3 c') b_w(c'), i.e. for each pair (a, a') the
+// (D + 1) x (D + 1) matrix V0 b^T A_aa' b with A_aa'(c, c') = A(a + 3 c, a' + 3 c').
+template <int D>
+Mat12 hessian_from_stress_derivative(const FemElement& e, const Eigen::Matrix<double, 3 * D, 3 * D>& A,
+                                     bool project_psd) {
+  const Eigen::Matrix<double, D, D + 1> b = shape_gradients<D>(e);
+  // A triangle is a 2D element of the xy plane: z moves do not change its F (its third row is
+  // 0), so its rows and columns of z stay 0.
+  constexpr int kMoving = D == 3 ? 3 : 2;
+  Mat12 H = Mat12::Zero();
+  for (int a2 = 0; a2 < kMoving; ++a2)
+    for (int a = 0; a < kMoving; ++a) {
+      Eigen::Matrix<double, D, D> Aaa;
+      for (int c2 = 0; c2 < D; ++c2)
+        for (int c = 0; c < D; ++c) Aaa(c, c2) = A(a + 3 * c, a2 + 3 * c2);
+      const Eigen::Matrix<double, D + 1, D + 1> block = e.rest_volume * (b.transpose() * (Aaa * b));
+      for (int w = 0; w <= D; ++w)
+        for (int v = 0; v <= D; ++v) H(3 * v + a, 3 * w + a2) = block(v, w);
     }
   H = 0.5 * (H + H.transpose());  // exact symmetry, whatever the rounding of the products
   if (project_psd) {
@@ -242,6 +336,35 @@ Mat12 element_hessian(const FemElement& e, const Points& x, bool project_psd) {
     H = eig.eigenvectors() * clamped.asDiagonal() * eig.eigenvectors().transpose();
   }
   return H;
+}
+
+}  // namespace
+
+double element_energy(const FemElement& e, const Points& x) {
+  if (e.vertices == 3) {
+    const Mat32 F = deformation_gradient_2d(e, x);
+    return e.rest_volume * energy_density_2d(e.material, e.mu, e.lambda, F);  // Psi(I) = 0
+  }
+  const Mat3 F = deformation_gradient(e, x);
+  return e.rest_volume * (energy_density(e.material, e.mu, e.lambda, F) -
+                          energy_density(e.material, e.mu, e.lambda, Mat3::Identity()));
+}
+
+Vec12 element_gradient(const FemElement& e, const Points& x) {
+  if (e.vertices == 3)
+    return gradient_from_stress<2>(
+        e, first_piola_2d(e.material, e.mu, e.lambda, deformation_gradient_2d(e, x)));
+  return gradient_from_stress<3>(e,
+                                 first_piola(e.material, e.mu, e.lambda, deformation_gradient(e, x)));
+}
+
+Mat12 element_hessian(const FemElement& e, const Points& x, bool project_psd) {
+  if (e.vertices == 3)
+    return hessian_from_stress_derivative<2>(
+        e, stress_derivative_2d(e.material, e.mu, e.lambda, deformation_gradient_2d(e, x)),
+        project_psd);
+  return hessian_from_stress_derivative<3>(
+      e, stress_derivative(e.material, e.mu, e.lambda, deformation_gradient(e, x)), project_psd);
 }
 
 }  // namespace pbdbench::fem

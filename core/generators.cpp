@@ -4,6 +4,7 @@
 // has C = 0 in the rest configuration.
 #include "core/generators.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -218,6 +219,64 @@ ParticleRange add_tet_block(Model& model, const TetBlockSpec& spec) {
   body.edge = spec.edge;
   body.volume = spec.volume;
   return add_tet_mesh(model, mesh, body, "add_tet_block");
+}
+
+ParticleRange add_tri_block(Model& model, const TriBlockSpec& spec) {
+  for (int a = 0; a < 2; ++a)
+    require_min("TriBlockSpec.cells[" + std::to_string(a) + "]", spec.cells[static_cast<size_t>(a)], 1);
+  for (int a = 0; a < 2; ++a)
+    require_positive("TriBlockSpec.size[" + std::to_string(a) + "]", spec.size[static_cast<size_t>(a)]);
+  require_finite("TriBlockSpec.origin", spec.origin);
+  require_positive("TriBlockSpec.density", spec.density);
+  require_positive("TriBlockSpec.thickness", spec.thickness);
+  require_positive("TriBlockSpec.radius", spec.radius);
+  require_params("TriBlockSpec.edge", spec.edge);
+
+  const int cx = spec.cells[0], cy = spec.cells[1];
+  const int vx = cx + 1, vy = cy + 1, n = vx * vy;
+  Points x(n, 3);
+  for (int j = 0; j < vy; ++j)
+    for (int i = 0; i < vx; ++i)
+      x.row(i + vx * j) =
+          (spec.origin + Vec3(spec.size[0] * i / cx, spec.size[1] * j / cy, 0.0)).transpose();
+  std::vector<std::array<int, 3>> local;
+  local.reserve(static_cast<size_t>(2 * cx * cy));
+  auto vid = [&](int i, int j) { return i + vx * j; };
+  for (int j = 0; j < cy; ++j)
+    for (int i = 0; i < cx; ++i) {
+      const int a = vid(i, j), b = vid(i + 1, j), c = vid(i + 1, j + 1), d = vid(i, j + 1);
+      if ((i + j) % 2 == 0) {  // diagonal a-c
+        local.push_back({a, b, c});
+        local.push_back({a, c, d});
+      } else {  // diagonal b-d
+        local.push_back({a, b, d});
+        local.push_back({b, c, d});
+      }
+    }
+  std::vector<double> masses(static_cast<size_t>(n), 0.0);
+  for (const auto& t : local) {
+    const Vec3 e1 = Vec3(x.row(t[1]) - x.row(t[0])), e2 = Vec3(x.row(t[2]) - x.row(t[0]));
+    const double m = spec.density * spec.thickness * 0.5 * e1.cross(e2).norm() / 3.0;
+    for (int v : t) masses[static_cast<size_t>(v)] += m;
+  }
+  const int begin = append_particles(model, x, masses, spec.radius);
+  std::vector<std::array<int, 2>> edges;
+  for (const auto& t : local) {
+    model.triangles.push_back({begin + t[0], begin + t[1], begin + t[2]});
+    for (int k = 0; k < 3; ++k) {
+      const int p = t[static_cast<size_t>(k)], q = t[static_cast<size_t>((k + 1) % 3)];
+      edges.push_back({std::min(p, q), std::max(p, q)});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  const std::uint16_t group = spec.edges ? model.group_index("edge") : 0;
+  for (const auto& e : edges) {
+    model.edges.push_back({begin + e[0], begin + e[1]});
+    if (spec.edges) add_distance(model, begin + e[0], begin + e[1], spec.edge, group);
+  }
+  model.surface_closed = false;
+  return {begin, begin + n};
 }
 
 namespace {

@@ -87,6 +87,27 @@ struct TetBlockSpec {
 };
 ParticleRange add_tet_block(Model& model, const TetBlockSpec& spec);
 
+// A rectangle of cells[0] x cells[1] cells in the xy plane (a 2D body: the plane-strain FEM
+// elements of core/fem.hpp move in it), spanning size[0] along x and size[1] along y from
+// `origin` (its minimum corner). Vertex (i, j) is begin + i + (cells[0] + 1) j; each cell is
+// split into two triangles along a diagonal that alternates from cell to cell (i + j even: from
+// (i, j) to (i+1, j+1); odd: from (i+1, j) to (i, j+1)), so that the mesh has no preferred
+// direction; all triangles wound counter-clockwise seen from +z. Mass from density times
+// thickness times each triangle's area, lumped equally to its three vertices. The triangles are
+// the model's triangles, their unique edges its edges; constraints: "edge" (distance on every
+// edge) when edges. The FEM elements are added apart (fem::add_fem_triangles).
+struct TriBlockSpec {
+  std::array<int, 2> cells{20, 4};
+  std::array<double, 2> size{1.0, 0.2};  // m
+  Vec3 origin = Vec3::Zero();            // m, the minimum corner
+  double density = 1000.0;               // kg/m^3
+  double thickness = 1.0;                // m, the extent out of the plane the mass stands for
+  double radius = 0.01;                  // m per particle
+  bool edges = false;
+  ConstraintParams edge;
+};
+ParticleRange add_tri_block(Model& model, const TriBlockSpec& spec);
+
 // Grid layout: count[0] x count[1] x count[2] spheres of `radius` on a cubic lattice of spacing
 // 2 radius (1 + gap) from `origin` (the centre of the first sphere); the jitter must stay below
 // radius gap, so that no two spheres start overlapping.

@@ -276,7 +276,9 @@ TetMesh read_tetgen(const std::string& path) {
       parse_int(ele_path, l.number, l.words[0], "tetrahedron number");
       std::array<int, 4> t{};
       for (int k = 0; k < 4; ++k) {  // the corners; the 6 edge nodes of a 10-node tet are dropped
-        const long long v = parse_int(ele_path, l.number, l.words[static_cast<size_t>(1 + k)], "node index") - first_index;
+        // Compared before subtracting: an index of INT64_MIN must not overflow.
+        const long long given = parse_int(ele_path, l.number, l.words[static_cast<size_t>(1 + k)], "node index");
+        const long long v = given < first_index ? -1 : given - first_index;
         if (v < 0 || v >= n)
           throw MeshError(ele_path, l.number, "node index " + std::string(l.words[static_cast<size_t>(1 + k)]) +
                                                   " is out of range [" + std::to_string(first_index) + ", " +
@@ -605,6 +607,32 @@ ParticleRange add_surface_mesh(Model& model, const SurfaceMesh& mesh, const Surf
     const auto twin = directed.find({edge.second, edge.first});
     if (count != 1 || twin == directed.end() || twin->second != 1) closed = false;
   }
+  // A dihedral bending constraint needs an edge shared by exactly two triangles: an edge of more
+  // (non-manifold) would silently get none, so with bending such a surface is refused, saying
+  // what would be dropped.
+  if (spec.bending) {
+    std::map<std::pair<int, int>, int> uses;
+    for (const auto& tri : mesh.triangles)
+      for (size_t e = 0; e < 3; ++e) ++uses[{std::min(tri[e], tri[(e + 1) % 3]), std::max(tri[e], tri[(e + 1) % 3])}];
+    int non_manifold = 0, interior = 0;
+    std::pair<int, int> first{-1, -1};
+    int first_uses = 0;
+    for (const auto& [edge, count] : uses) {
+      if (count == 2) ++interior;
+      if (count > 2 && non_manifold++ == 0) {
+        first = edge;
+        first_uses = count;
+      }
+    }
+    if (non_manifold > 0)
+      throw MeshError(file, 0, std::to_string(non_manifold) + " non-manifold edge" + (non_manifold == 1 ? "" : "s") +
+                                   " (shared by more than two triangles; the first: vertices " +
+                                   std::to_string(first.first) + " and " + std::to_string(first.second) + ", " +
+                                   std::to_string(first_uses) + " triangles): a dihedral bending constraint needs "
+                                   "exactly two, so they would get none (the " + std::to_string(interior) +
+                                   " edges shared by two would keep theirs); fix the mesh, or import it "
+                                   "without bending (bending = false)");
+  }
   // A closed surface wound inward (negative enclosed volume) is turned outward, as Model asks.
   std::vector<std::array<int, 3>> triangles = mesh.triangles;
   if (closed) {
@@ -659,7 +687,12 @@ ParticleRange add_tet_mesh(Model& model, const TetMesh& mesh, const TetBodySpec&
       throw MeshError(file, 0, "tet " + std::to_string(e) + " (vertices " + index_list(mesh.tets[e], 4) +
                                    ") is degenerate: volume " + format_number(v, kShortDigits) + " m^3 is below 1e-12 * diag^3 = " +
                                    format_number(min_volume, kShortDigits) + " m^3");
-    if (v < 0.0 && spec.reorient) {
+    if (v < 0.0 && !spec.reorient)
+      throw MeshError(file, 0, "tet " + std::to_string(e) + " (vertices " + index_list(mesh.tets[e], 4) +
+                                   ") is negatively oriented (volume " + format_number(v, kShortDigits) +
+                                   " m^3): refused with reorient = false; reorient = true flips it "
+                                   "(a study of inverted tets stages them with [defects] flip_tets)");
+    if (v < 0.0) {
       std::swap(t[2], t[3]);
       v = -v;
     }

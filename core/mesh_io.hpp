@@ -63,9 +63,9 @@ ParticleRange add_surface_mesh(Model& model, const SurfaceMesh& mesh, const Surf
                                const std::string& file);
 
 // Adds a tet mesh as a soft body: particles (mass from density * |volume| / 4 per tet vertex),
-// the tets (a negative one has two vertices swapped when reorient; else it is kept as given and
-// its volume constraint gets the negative rest volume: a study of inconsistent orientation needs
-// that), "edge" and "volume" constraints, and the boundary surface (outward, for either sign).
+// the tets (a negative one has two vertices swapped when reorient; else it is refused with a
+// MeshError: inconsistent orientation is staged on purpose with the [defects] key flip_tets),
+// "edge" and "volume" constraints, and the boundary surface (outward).
 // Throws MeshError (line 0) naming the element when a tet is degenerate (|volume| below 1e-12
 // times the cube of the mesh's bounding-box diagonal), an index is out of range, two vertices
 // have identical coordinates, or a vertex belongs to no tet (it would have no mass).

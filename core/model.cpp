@@ -13,6 +13,8 @@ const char* to_string(ConstraintKind kind) {
     case ConstraintKind::Bending: return "bending";
     case ConstraintKind::FemDeviatoric: return "fem_deviatoric";
     case ConstraintKind::FemHydrostatic: return "fem_hydrostatic";
+    case ConstraintKind::FemStrainTriangle: return "fem_strain_triangle";
+    case ConstraintKind::FemStrainTet: return "fem_strain_tet";
   }
   return "unknown";
 }
@@ -21,6 +23,8 @@ const char* to_string(Material material) {
   switch (material) {
     case Material::StableNeoHookean: return "stable_neo_hookean";
     case Material::Corotated: return "corotated";
+    case Material::StVK: return "stvk";
+    case Material::Linear: return "linear";
   }
   return "unknown";
 }

@@ -36,21 +36,31 @@ struct Constraint {
 };
 
 // ---------------------------------------------------------------------------------------------
-// Hyperelastic FEM elements (linear tetrahedra). Their energy densities are in core/fem.hpp.
+// Hyperelastic FEM elements (linear tetrahedra, and linear triangles of the StVK material). Their
+// energy densities are in core/fem.hpp.
 enum class Material : std::uint8_t {
   StableNeoHookean,  // Psi = mu/2 (I_C - 3) + lambda_snh/2 (J - 1 - mu/lambda_snh)^2,
                      // lambda_snh = lambda + mu so that small strains obey linear elasticity
                      // (Smith et al. 2018 without the log term, as Macklin and Mueller 2021)
   Corotated,         // fixed corotated: Psi = mu |F - R|^2 + lambda/2 (J - 1)^2, F = R S
                      // (Stomakhin et al. 2012); its small-strain limit is linear elasticity
+  StVK,              // St Venant-Kirchhoff: Psi = mu E : E + lambda/2 tr(E)^2, E = (F^T F - I)/2
+                     // the Green strain (the linear isotropic law on the Green strain; Macklin et
+                     // al. 2016, sec. 6.3). Tets, and triangles (2 x 2 E: plane strain)
+  Linear,            // linear elasticity: Psi = mu e : e + lambda/2 tr(e)^2, e = (F + F^T)/2 - I
+                     // the small strain; not invariant under rotation (tets only)
 };
 
-const char* to_string(Material material);  // "stable_neo_hookean", "corotated"
+const char* to_string(Material material);  // "stable_neo_hookean", "corotated", "stvk", "linear"
 
 struct FemElement {
-  std::array<int, 4> particles{-1, -1, -1, -1};
-  Mat3 rest_inverse = Mat3::Identity();  // Dm^-1, Dm = [X1-X0, X2-X0, X3-X0] at rest (1/m)
-  double rest_volume = 0.0;              // m^3, |det Dm| / 6 > 0
+  std::array<int, 4> particles{-1, -1, -1, -1};  // a triangle's fourth entry is -1
+  int vertices = 4;                      // 4: a tet; 3: a triangle, a 2D element of the xy plane
+  Mat3 rest_inverse = Mat3::Identity();  // Dm^-1, Dm = [X1-X0, X2-X0, X3-X0] at rest (1/m); a
+                                         // triangle's is the 2 x 2 top-left block, Dm = the x and
+                                         // y of the rest edges X1-X0, X2-X0
+  double rest_volume = 0.0;              // m^3, |det Dm| / 6 > 0; a triangle's is its rest area
+                                         // times its thickness
   Material material = Material::StableNeoHookean;
   double mu = 0.0;      // Pa, shear modulus E / (2 (1 + nu))
   double lambda = 0.0;  // Pa, Lame's first parameter of linear elasticity E nu / ((1+nu)(1-2nu))

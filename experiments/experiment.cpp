@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "config/data_dir.hpp"
 #include "config/toml_text.hpp"
 #include "runfile/series.hpp"
 
@@ -18,6 +19,22 @@ const char* to_string(Tier tier) { return tier == Tier::Quick ? "quick" : "full"
 
 const char* to_string(ExperimentKind kind) {
   return kind == ExperimentKind::Claim ? "claim" : "reproduction";
+}
+
+const char* to_string(SetupFrom from) {
+  switch (from) {
+    case SetupFrom::Paper: return "paper";
+    case SetupFrom::Assumed: return "assumed";
+    case SetupFrom::Derived: return "derived";
+  }
+  return "?";
+}
+
+const char* to_string(Judges judges) { return judges == Judges::Listing ? "listing" : "method"; }
+
+const std::vector<std::string>& repaired_listing_fixes() {
+  static const std::vector<std::string> fixes = {"D1", "D3", "D4", "D5", "D6", "D7", "D8", "D9"};
+  return fixes;
 }
 
 namespace {
@@ -148,7 +165,8 @@ const std::vector<std::string>& run_scalar_names() {
   static const std::vector<std::string> names = {
       "exploded",      "exploded_step", "exploded_time", "complete",       "failed",
       "steps_planned", "steps_completed", "wall_time",   "inv_mass_max",   "inv_mass_min",
-      "particles",     "dt",            "pinned_drift"};
+      "particles",     "dt",            "pinned_drift",  "constraints_distance", "constraints_volume",
+      "constraints_bending"};
   return names;
 }
 
@@ -168,6 +186,87 @@ const RunSpec* Experiment::find_run(const std::string& name) const {
   for (const RunSpec& r : runs)
     if (r.name == name) return &r;
   return nullptr;
+}
+
+const TimingSpec* Experiment::find_timing(const std::string& name) const {
+  for (const TimingSpec& t : timings)
+    if (t.name == name) return &t;
+  return nullptr;
+}
+
+const MeasureSpec* Experiment::find_measure(const std::string& name) const {
+  for (const MeasureSpec& m : measures)
+    if (m.name == name) return &m;
+  return nullptr;
+}
+
+std::vector<std::string> Experiment::runs_read(const MeasureSpec& measure) const {
+  std::set<std::string> names;
+  std::vector<const MeasureSpec*> todo = {&measure};
+  std::set<std::string> seen;
+  while (!todo.empty()) {
+    const MeasureSpec* m = todo.back();
+    todo.pop_back();
+    if (!seen.insert(m->name).second) continue;
+    if (!m->run.empty()) names.insert(m->run);
+    if (const TimingSpec* t = m->timing.empty() ? nullptr : find_timing(m->timing))
+      names.insert(t->runs.begin(), t->runs.end());
+    if (m->run.empty() && m->timing.empty())
+      for (const std::string& s : m->value.scalar_names())
+        if (const MeasureSpec* d = find_measure(s)) todo.push_back(d);
+  }
+  std::vector<std::string> out;
+  for (const RunSpec& r : runs)
+    if (names.count(r.name)) out.push_back(r.name);
+  return out;
+}
+
+std::vector<std::string> Experiment::measures_read(const PartSpec& part) const {
+  std::vector<std::string> out;
+  std::set<std::string> seen;
+  std::vector<std::string> todo;
+  if (part.rule) todo = part.rule->scalar_names();
+  if (part.requires_)
+    for (const std::string& s : part.requires_->scalar_names()) todo.push_back(s);
+  while (!todo.empty()) {
+    const std::string name = todo.front();
+    todo.erase(todo.begin());
+    if (!seen.insert(name).second) continue;
+    const MeasureSpec* m = find_measure(name);
+    if (m == nullptr) continue;
+    out.push_back(name);
+    if (m->run.empty() && m->timing.empty())
+      for (const std::string& s : m->value.scalar_names()) todo.push_back(s);
+  }
+  return out;
+}
+
+bool Experiment::reads_timing(const MeasureSpec& measure) const {
+  if (!measure.timing.empty()) return true;
+  if (!measure.run.empty()) return false;
+  for (const std::string& s : measure.value.scalar_names())
+    if (const MeasureSpec* d = find_measure(s); d != nullptr && reads_timing(*d)) return true;
+  return false;
+}
+
+bool Experiment::timing_only(const RunSpec& run) const {
+  bool timed = false;
+  for (const TimingSpec& t : timings)
+    if (std::find(t.runs.begin(), t.runs.end(), run.name) != t.runs.end()) timed = true;
+  if (!timed) return false;
+  for (const MeasureSpec& m : measures)
+    if (m.run == run.name) return false;
+  if (figure.kind == "series" && std::find(figure.runs.begin(), figure.runs.end(), run.name) != figure.runs.end())
+    return false;
+  return true;
+}
+
+std::vector<config::Override> Experiment::timing_overrides(const RunSpec& run, const TimingSpec& timing,
+                                                           Tier tier) const {
+  std::vector<config::Override> out = overrides(run, tier, 0);
+  out.insert(out.end(), timing.set.begin(), timing.set.end());
+  if (tier == Tier::Quick) out.insert(out.end(), timing.quick_set.begin(), timing.quick_set.end());
+  return out;
 }
 
 int Experiment::trials(const RunSpec& run, Tier tier) const {
@@ -206,7 +305,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   ex.file = file;
   const TableReader top(root, file, "",
                         {"kind", "paper", "id", "section", "claim", "experiment", "scenario", "set",
-                         "quick", "run", "measure", "part", "figure"});
+                         "quick", "setup", "run", "timing", "measure", "part", "figure"});
   const std::string kind = top.string("kind", false, "claim");
   if (kind != "claim" && kind != "reproduction")
     fail(file, top.line(), "kind", "'" + kind + "' is not one of claim, reproduction");
@@ -214,7 +313,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   ex.paper = top.string("paper", ex.kind == ExperimentKind::Reproduction);
   ex.id = top.string("id", true);
   ex.section = top.string("section", true);
-  ex.claim = top.string("claim", true);
+  ex.claim = top.string("claim", ex.kind == ExperimentKind::Reproduction);
   ex.experiment = top.string("experiment", true);
   ex.scenario = top.string("scenario", false);
   ex.set = top.overrides("set");
@@ -225,6 +324,25 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   }
   if (file.stem().string() != ex.id)
     fail(file, 1, "id", "'" + ex.id + "' does not match the file name '" + file.stem().string() + "'");
+
+  // Setup rows (reproductions label every setup value: from the paper, assumed or derived).
+  for (const toml::table* t : array_of_tables(root, "setup", file)) {
+    const TableReader r(*t, file, "setup.", {"what", "value", "from", "source", "why"});
+    SetupSpec row;
+    row.line = r.line();
+    row.what = r.string("what", true);
+    row.value = r.string("value", true);
+    const std::string from = r.string("from", true);
+    if (from == "paper") row.from = SetupFrom::Paper;
+    else if (from == "assumed") row.from = SetupFrom::Assumed;
+    else if (from == "derived") row.from = SetupFrom::Derived;
+    else fail(file, row.line, "setup.from", "'" + from + "' is not one of paper, assumed, derived");
+    row.source = r.string("source", row.from == SetupFrom::Paper);
+    row.why = r.string("why", row.from != SetupFrom::Paper);
+    ex.setup.push_back(std::move(row));
+  }
+  if (ex.kind == ExperimentKind::Reproduction && ex.setup.empty())
+    fail(file, 0, "setup", "a reproduction labels its setup: at least one [[setup]] row (from = paper | assumed | derived)");
 
   // Runs.
   for (const toml::table* t : array_of_tables(root, "run", file)) {
@@ -253,16 +371,38 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   if (ex.runs.empty() && !root.contains("part"))
     fail(file, 0, "run", "an experiment needs at least one [[run]] or one untestable [[part]]");
 
+  // Timing groups.
+  for (const toml::table* t : array_of_tables(root, "timing", file)) {
+    const TableReader r(*t, file, "timing.", {"name", "runs", "repeats", "set", "quick_set"});
+    TimingSpec timing;
+    timing.line = r.line();
+    timing.name = r.string("name", true);
+    timing.runs = r.strings("runs");
+    timing.repeats = static_cast<int>(r.integer("repeats", timing.repeats, kMinTimingRepeats));
+    timing.set = r.overrides("set");
+    timing.quick_set = r.overrides("quick_set");
+    if (timing.runs.empty()) fail(file, timing.line, "timing.runs", "a timing group times at least one run");
+    for (const std::string& name : timing.runs) {
+      if (ex.find_run(name) == nullptr) fail(file, timing.line, "timing.runs", "no run named '" + name + "'");
+      if (std::count(timing.runs.begin(), timing.runs.end(), name) > 1)
+        fail(file, timing.line, "timing.runs", "run '" + name + "' is listed twice");
+    }
+    if (ex.find_timing(timing.name) != nullptr || ex.find_run(timing.name) != nullptr)
+      fail(file, timing.line, "timing.name", "'" + timing.name + "' is already a timing group or a run");
+    ex.timings.push_back(std::move(timing));
+  }
+
   // Measures.
   const std::vector<std::string> series = run_series_names();
   const std::vector<std::string>& scalars = run_scalar_names();
   std::set<std::string> measure_names;
   for (const toml::table* t : array_of_tables(root, "measure", file)) {
-    const TableReader r(*t, file, "measure.", {"name", "run", "value", "over_trials", "units", "doc"});
+    const TableReader r(*t, file, "measure.", {"name", "run", "timing", "value", "over_trials", "units", "doc"});
     MeasureSpec m;
     m.line = r.line();
     m.name = r.string("name", true);
     m.run = r.string("run", false);
+    m.timing = r.string("timing", false);
     m.value = r.expression("value", true);
     m.over_trials = r.string("over_trials", false, "mean");
     m.units = r.string("units", false);
@@ -272,9 +412,31 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
     const std::vector<std::string> modes = {"mean", "max", "min", "sum", "median"};
     if (std::find(modes.begin(), modes.end(), m.over_trials) == modes.end())
       fail(file, m.line, "measure.over_trials", "'" + m.over_trials + "' is not one of mean, max, min, sum, median");
-    if (!m.run.empty()) {
+    if (!m.run.empty() && !m.timing.empty())
+      fail(file, m.line, "measure", "a measure reads a run or a timing group, not both");
+    if (!m.timing.empty()) {
+      const TimingSpec* timing = ex.find_timing(m.timing);
+      if (timing == nullptr) fail(file, m.line, "measure.timing", "no timing group named '" + m.timing + "'");
+      if (!m.value.series_names().empty())
+        fail(file, m.line, "measure.value", "a timing measure reads its group's runs by name, not series");
+      for (const std::string& s : m.value.scalar_names())
+        if (std::find(timing->runs.begin(), timing->runs.end(), s) == timing->runs.end() && !measure_names.count(s))
+          fail(file, m.line, "measure.value",
+               "'" + s + "' is neither a run of timing group '" + m.timing + "' (" +
+                   fmt::format("{}", fmt::join(timing->runs, ", ")) + ") nor a measure defined above");
+    } else if (!m.run.empty()) {
       if (ex.find_run(m.run) == nullptr)
         fail(file, m.line, "measure.run", "no run named '" + m.run + "'");
+      for (const std::string& s : m.value.series_names())
+        for (const SeriesSpec& spec : series_table())
+          if (spec.name == s && !spec.deterministic)
+            fail(file, m.line, "measure.value",
+                 "'" + s + "' is a wall-clock series: costs are measured by a [[timing]] group "
+                 "(repeated and interleaved), not from one run");
+      const std::vector<std::string> used = m.value.scalar_names();
+      if (std::find(used.begin(), used.end(), std::string("wall_time")) != used.end())
+        fail(file, m.line, "measure.value",
+             "'wall_time' is a wall-clock time: costs are measured by a [[timing]] group");
       for (const std::string& s : m.value.series_names())
         if (!is_series_name(s, series))
           fail(file, m.line, "measure.value", "no series named '" + s + "' (pbdbench series lists them)");
@@ -295,28 +457,61 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   }
 
   // Parts.
+  const bool claim = ex.kind == ExperimentKind::Claim;
+  auto check_reads_measures = [&](const Expression& e, int line, const std::string& key) {
+    if (!e.series_names().empty()) fail(file, line, key, "a rule reads measures, not series");
+    for (const std::string& s : e.scalar_names())
+      if (!measure_names.count(s)) fail(file, line, key, "no measure named '" + s + "'");
+  };
   for (const toml::table* t : array_of_tables(root, "part", file)) {
-    const TableReader r(*t, file, "part.",
-                        {"says", "rule", "untestable", "timing", "published", "source", "ours"});
+    std::vector<std::string> known = {"says", "rule", "untestable", "requires", "requires_why"};
+    const std::vector<std::string> only = claim ? std::vector<std::string>{"quote", "translation", "judges", "regime", "reading"}
+                                                : std::vector<std::string>{"published", "source", "ours", "identity",
+                                                                           "setup_unknown"};
+    known.insert(known.end(), only.begin(), only.end());
+    const TableReader r(*t, file, "part.", known);
     PartSpec p;
     p.line = r.line();
     p.says = r.string("says", true);
-    p.published = r.string("published", false);
-    p.source = r.string("source", false);
-    p.ours = r.string("ours", false);
-    if (!p.ours.empty() && !measure_names.count(p.ours))
-      fail(file, p.line, "part.ours", "no measure named '" + p.ours + "'");
     p.untestable = r.string("untestable", false);
-    p.timing = r.boolean("timing", false);
     const bool has_rule = r.node("rule") != nullptr;
     if (has_rule == !p.untestable.empty())
       fail(file, p.line, "part", "a part has either a rule or an untestable reason, not both or neither");
     if (has_rule) {
       p.rule = r.expression("rule", true);
-      if (!p.rule->series_names().empty())
-        fail(file, p.line, "part.rule", "a rule reads measures, not series");
-      for (const std::string& s : p.rule->scalar_names())
-        if (!measure_names.count(s)) fail(file, p.line, "part.rule", "no measure named '" + s + "'");
+      check_reads_measures(*p.rule, p.line, "part.rule");
+    }
+    if (r.node("requires") != nullptr) {
+      p.requires_ = r.expression("requires", true);
+      check_reads_measures(*p.requires_, p.line, "part.requires");
+      p.requires_why = r.string("requires_why", true);
+    } else if (r.node("requires_why") != nullptr) {
+      fail(file, p.line, "part.requires_why", "a reason without a `requires` condition");
+    }
+    if (claim) {
+      p.quote = r.string("quote", true);
+      p.translation = r.string("translation", true);
+      p.reading = r.string("reading", false);
+      const std::string judges = r.string("judges", true);
+      if (judges == "listing") p.judges = Judges::Listing;
+      else if (judges == "method") p.judges = Judges::Method;
+      else fail(file, p.line, "part.judges", "'" + judges + "' is not one of listing, method");
+      const std::string regime = r.string("regime", false, "article");
+      if (regime != "article" && regime != "beyond")
+        fail(file, p.line, "part.regime", "'" + regime + "' is not one of article, beyond");
+      p.beyond = regime == "beyond";
+    } else {
+      p.published = r.string("published", true);
+      p.source = r.string("source", true);
+      p.ours = r.string("ours", false);
+      if (!p.ours.empty() && !measure_names.count(p.ours))
+        fail(file, p.line, "part.ours", "no measure named '" + p.ours + "'");
+      p.identity = r.string("identity", false);
+      p.setup_unknown = r.string("setup_unknown", false);
+      if (!p.identity.empty() && !p.setup_unknown.empty())
+        fail(file, p.line, "part", "a part is an identity or has an unknown setup, not both");
+      if ((!p.identity.empty() || !p.setup_unknown.empty()) && !has_rule)
+        fail(file, p.line, "part", "an identity or a part with an unknown setup still has a rule (it is run and shown)");
     }
     ex.parts.push_back(std::move(p));
   }
@@ -353,6 +548,31 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
           (void)config::load(ex.scenario_of(run), ex.overrides(run, tier, 0));
         } catch (const config::ConfigError& e) {
           fail(file, run.line, "run", fmt::format("run '{}' ({} tier): {}", run.name, to_string(tier), e.what()));
+        }
+      }
+    }
+    // A part that judges the method reads the listing only repaired (one fault, one verdict: the
+    // listing's defects are judged by the parts that judge the listing).
+    if (claim) {
+      for (const PartSpec& p : ex.parts) {
+        if (p.judges != Judges::Method) continue;
+        std::set<std::string> runs;
+        for (const std::string& name : ex.measures_read(p))
+          for (const std::string& run : ex.runs_read(*ex.find_measure(name))) runs.insert(run);
+        for (const std::string& name : runs) {
+          const RunSpec& run = *ex.find_run(name);
+          const config::Config cfg = config::load(ex.scenario_of(run), ex.overrides(run, Tier::Full, 0));
+          if (cfg.get_string("solver.name") != "pbd-seed") continue;
+          const std::vector<std::string>& fixes = cfg.get_strings("solver.seed.fixes");
+          std::vector<std::string> missing;
+          for (const std::string& d : repaired_listing_fixes())
+            if (std::find(fixes.begin(), fixes.end(), d) == fixes.end()) missing.push_back(d);
+          if (!missing.empty())
+            fail(file, p.line, "part.judges",
+                 fmt::format("the part judges the method but reads run '{}', the listing without the fixes {}: "
+                             "judge the listing's defects once, in a part with judges = \"listing\", and "
+                             "run the method with the listing repaired (solver.seed.fixes = [{}]) or with pbd",
+                             name, fmt::join(missing, ", "), fmt::join(repaired_listing_fixes(), ", ")));
         }
       }
     }
@@ -402,11 +622,11 @@ std::vector<Experiment> load_experiments(const fs::path& dir, bool check_configs
   return out;
 }
 
-fs::path reproductions_dir() { return fs::path(PBDBENCH_SOURCE_DIR) / "reproductions" / "experiments"; }
+fs::path reproductions_dir() { return config::data_dir() / "reproductions" / "experiments"; }
 
 fs::path experiments_dir() {
   if (const char* env = std::getenv("PBDBENCH_CLAIMS"); env != nullptr && *env != '\0') return env;
-  return fs::path(PBDBENCH_SOURCE_DIR) / "claims" / "experiments";
+  return config::data_dir() / "claims" / "experiments";
 }
 
 }  // namespace pbdbench::experiments

@@ -1,13 +1,14 @@
-// A claim's experiment: one TOML file in claims/experiments/, written before its result is known,
-// so that a verdict can change only when a measurement changes. The file says which runs to make
-// (scenario, solver variants, seeded trials), what to measure from their run files, and the rule
-// that decides each part of the claim, with its thresholds.
+// An experiment: one TOML file, written and registered (experiments/registry.hpp) before its result
+// is known, so that a verdict can change only when a measurement changes. Claims of the seed
+// article live in claims/experiments/, paper reproductions in reproductions/experiments/. The file
+// says which runs to make (scenario, solver variants, seeded trials), what to measure from their
+// run files, which costs to time like a benchmark, and the rule that decides each part.
 //
-//   kind = "claim"                     # or "reproduction" (then `paper` names the publication,
-//                                      #   and each part may carry published, source and ours)
-//   id = "S5.4"                        # the row of the claims index (../shared/seed/CLAIMS.md)
+//   kind = "claim"                     # or "reproduction" (then `paper` cites the publication,
+//                                      #   `claim` says what it reports, and [[setup]] rows label
+//                                      #   every setup value as taken from the paper or assumed)
+//   id = "S5.4"                        # claims: the id of the claims index (claims/index.toml)
 //   section = "5.4"
-//   claim = "..."                      # the claim, as the article makes it
 //   experiment = "..."                 # what is run and why, in a few sentences
 //   scenario = "failures/cyclic_penetration"   # default scenario of the runs
 //   [set]                              # overrides for every run, both tiers
@@ -15,6 +16,12 @@
 //   [quick]                            # the quick tier (the test suite): fewer trials, shorter runs
 //   trials = 10                        # at most this many trials per run
 //   set = { "time.duration" = 0.05 }   # overrides for every run, quick tier only
+//   [[setup]]                          # reproductions: one row per setup value
+//   what = "chain"
+//   value = "20 particles of 1 kg"
+//   from = "paper"                     # paper | assumed | derived
+//   source = "sec. 6.2"                # required with from = "paper"
+//   why = "..."                        # required with from = "assumed" or "derived"
 //   [[run]]
 //   name = "sequential"
 //   scenario = "..."                   # optional, else the experiment's
@@ -22,6 +29,11 @@
 //   quick_set = { ... }                # optional, quick tier only
 //   trials = 100                       # seeded trials: trial i sets trial_key = trial_base + i
 //   trial_key = "scene.seed"           # or several keys: ["scene.seed", "solver.shuffle_seed"]
+//   [[timing]]                         # costs measured like a benchmark (experiments/timing.hpp)
+//   name = "cost"
+//   runs = ["sequential", "global_cg"] # timed together: every repeat runs each once, interleaved
+//   repeats = 9                        # >= 7, after one warm-up repeat
+//   set = { "time.duration" = 0.25 }   # optional overrides of the timed runs (quick_set too)
 //   [[measure]]
 //   name = "rate_sequential"
 //   run = "sequential"                 # a measure of a run: `value` over its series, per trial,
@@ -30,15 +42,29 @@
 //   units = "1"
 //   doc = "fraction of trials still penetrating by more than 1 % of the radius"
 //   [[measure]]
-//   name = "cost_ratio"                # a measure without `run` is computed from earlier measures
-//   value = "time_global / time_sequential"
+//   name = "cost_ratio"                # a measure of a timing group: `value` over the group's
+//   timing = "cost"                    #   runs' solver time per step (s) in one repeat (and the
+//   value = "global_cg / sequential"   #   measures above it, as constants); its value is the
+//                                      #   median over the repeats, with a 95 % interval
+//   [[measure]]
+//   name = "gain"                      # a measure without `run` or `timing` is computed from
+//   value = "rate_sequential - rate_shuffled"   # earlier measures (intervals carried through)
 //   [[part]]
 //   says = "shuffled groups take the penetration rate from 100 % to 3 %"
+//   quote = "..."                      # claims: the article's sentence, verbatim (Chinese)
+//   translation = "..."                # claims: in English
+//   judges = "method"                  # claims: listing (the printed code) | method (repaired
+//                                      #   listing or pbd: the loader checks the fixes)
+//   regime = "article"                 # claims: article (default) | beyond (beyond its regime)
+//   reading = "..."                    # claims, optional: which reading is tested, and why
 //   rule = "rate_sequential >= 0.9 and rate_grouped <= 0.1"
-//   timing = false                     # true: the rule reads wall-clock times (machine dependent)
+//   requires = "exploded_baseline == 0"   # optional: else the part is inconclusive
+//   requires_why = "the baseline must not explode"
 //   published = "6 %"                  # reproductions: the published number, as printed,
 //   source = "sec. 6.2, fig. 5"        #   where it is printed,
 //   ours = "rate_sequential"           #   and the measure shown beside it
+//   identity = "why"                   # reproductions: holds by construction (not counted)
+//   setup_unknown = "what"             # reproductions: the paper's setup cannot be recovered
 //   # untestable = "why"               # instead of a rule: not testable here, and why
 //   [figure]
 //   kind = "series"                    # series: one series of several runs against time
@@ -84,7 +110,8 @@ struct RunSpec {
 
 struct MeasureSpec {
   std::string name;
-  std::string run;  // "" for a measure computed from earlier measures
+  std::string run;     // a measure of a run's trials; "" otherwise
+  std::string timing;  // a measure of a timing group's repeats; "" otherwise
   Expression value{"0"};
   std::string over_trials = "mean";  // mean | max | min | sum | median
   std::string units;
@@ -92,17 +119,62 @@ struct MeasureSpec {
   int line = 0;
 };
 
-struct PartSpec {
-  std::string says;
-  std::string published;  // reproductions: the published number or relation, as printed
-  std::string source;     // reproductions: where it is printed (paper, section, figure or table)
-  std::string ours;       // reproductions: the measure shown beside the published number
-  std::optional<Expression> rule;  // absent when untestable
-  std::string untestable;          // the reason, when the part cannot be tested here
-  bool timing = false;             // the rule reads wall-clock times
+// Costs measured like a benchmark: the runs of a group are timed together, interleaved, `repeats`
+// times after a warm-up repeat (experiments/timing.hpp).
+struct TimingSpec {
+  std::string name;
+  std::vector<std::string> runs;            // runs of the experiment
+  int repeats = 9;                          // >= kMinTimingRepeats
+  std::vector<config::Override> set;        // overrides of the timed runs, both tiers
+  std::vector<config::Override> quick_set;  // quick tier only
+  int line = 0;
+};
+inline constexpr int kMinTimingRepeats = 7;
+
+// A setup value of a reproduction and where it comes from.
+enum class SetupFrom { Paper, Assumed, Derived };
+const char* to_string(SetupFrom from);  // "paper", "assumed", "derived"
+
+struct SetupSpec {
+  std::string what;
+  std::string value;
+  SetupFrom from = SetupFrom::Paper;
+  std::string source;  // where the paper gives it (from = paper)
+  std::string why;     // why this value (assumed, derived)
   int line = 0;
 };
 
+// What a claim's part judges: the article's code as printed, or the method it describes (run by
+// the repaired listing or by pbd).
+enum class Judges { Listing, Method };
+const char* to_string(Judges judges);  // "listing", "method"
+
+// The seed listing's departures that are defects (docs/seed-departures.md): a part that judges the
+// method reads pbd-seed only with every one of them fixed. D2 (position damping), D10 (float) and
+// D11 (collisions tested in every iteration) are the article's design, kept.
+const std::vector<std::string>& repaired_listing_fixes();
+
+struct PartSpec {
+  std::string says;
+  // Claims: the article's words and how they are read.
+  std::string quote;        // the sentence(s), verbatim, in the article's language
+  std::string translation;  // in English
+  Judges judges = Judges::Method;
+  bool beyond = false;      // regime = "beyond": goes beyond the regime the article means
+  std::string reading;      // which reading of the sentence is tested, and why
+  // Reproductions.
+  std::string published;  // the published number or relation, as printed
+  std::string source;     // where it is printed (paper, section, figure or table)
+  std::string ours;       // the measure shown beside the published number
+  std::string identity;        // why the check holds by construction ("" when it does not)
+  std::string setup_unknown;   // what of the paper's setup cannot be recovered
+  // Both.
+  std::optional<Expression> rule;  // absent when untestable
+  std::string untestable;          // the reason, when the part cannot be tested here
+  std::optional<Expression> requires_;  // must hold for the part to be decided
+  std::string requires_why;
+  int line = 0;
+};
 struct FigureSpec {
   std::string kind = "none";  // none | series | bars
   std::string series;         // series: the series plotted
@@ -125,19 +197,35 @@ struct Experiment {
   std::vector<config::Override> set;
   std::vector<config::Override> quick_set;
   int quick_trials = 10;  // cap on the trials of each run in the quick tier
+  std::vector<SetupSpec> setup;
   std::vector<RunSpec> runs;
+  std::vector<TimingSpec> timings;
   std::vector<MeasureSpec> measures;
   std::vector<PartSpec> parts;
   FigureSpec figure;
 
   const RunSpec* find_run(const std::string& name) const;
+  const TimingSpec* find_timing(const std::string& name) const;
+  const MeasureSpec* find_measure(const std::string& name) const;
   // The trials of a run in a tier, and the overrides of its trial i, in the order they apply:
   // the experiment's set, the run's set, (quick) the experiment's and the run's quick sets, the
   // trial key.
   int trials(const RunSpec& run, Tier tier) const;
   std::vector<config::Override> overrides(const RunSpec& run, Tier tier, int trial) const;
+  // The overrides of a run timed in `timing`: the run's (trial 0), then the group's.
+  std::vector<config::Override> timing_overrides(const RunSpec& run, const TimingSpec& timing,
+                                                 Tier tier) const;
   // The scenario a run loads, resolved against the experiment file's folder.
   std::string scenario_of(const RunSpec& run) const;
+  // The runs a measure reads, through the measures it is computed from (a timing measure reads
+  // its group's runs), each once, in the experiment's order.
+  std::vector<std::string> runs_read(const MeasureSpec& measure) const;
+  // The measures a part's rule and `requires` read, through derived measures, each once.
+  std::vector<std::string> measures_read(const PartSpec& part) const;
+  // Whether a measure reads a timing group (directly or through derived measures).
+  bool reads_timing(const MeasureSpec& measure) const;
+  // Runs that only timing groups read: their accuracy runs are not made.
+  bool timing_only(const RunSpec& run) const;
 };
 
 class ExperimentError : public std::runtime_error {
@@ -159,8 +247,9 @@ std::vector<Experiment> load_experiments(const std::filesystem::path& dir,
 // Orders claim ids as the index does: by section numbers, then by letter ("S3.1" < "S3.1a").
 bool claim_id_less(const std::string& a, const std::string& b);
 
-// Where the experiments live: $PBDBENCH_CLAIMS when set, else <source dir>/claims/experiments;
-// the reproductions: <source dir>/reproductions/experiments.
+// Where the experiments live: $PBDBENCH_CLAIMS when set, else <data dir>/claims/experiments;
+// the reproductions: <data dir>/reproductions/experiments (config/data_dir.hpp). Each folder's
+// parent holds the registry (registry.toml) and, for claims, the claims index (index.toml).
 std::filesystem::path experiments_dir();
 std::filesystem::path reproductions_dir();
 
@@ -172,6 +261,8 @@ std::filesystem::path reproductions_dir();
 //   particles, inv_mass_max, inv_mass_min  of the run's model (1/kg)
 //   pinned_drift  m, the largest distance a particle with inverse mass 0 moved from its place in
 //                 the first frame, over the written frames (kinematic particles move by design)
+//   constraints_distance, constraints_volume, constraints_bending  the model's constraints of
+//                 each kind
 std::vector<std::string> run_series_names();
 const std::vector<std::string>& run_scalar_names();
 

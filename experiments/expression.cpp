@@ -33,6 +33,7 @@ constexpr Reduction kReductions[] = {
     {"initial", 0},  {"final", 0},    {"max", 0},      {"min", 0},      {"mean", 0},
     {"sum", 0},      {"maxabs", 0},   {"at", 1},       {"max_from", 1}, {"min_from", 1},
     {"mean_from", 1}, {"maxabs_from", 1}, {"period", 0},  {"period_from", 1},
+    {"max_last", 1}, {"min_last", 1}, {"mean_last", 1}, {"maxabs_last", 1}, {"period_last", 1},
 };
 constexpr const char* kNumericFunctions[] = {"abs", "sqrt", "log10", "min", "max"};
 
@@ -243,9 +244,18 @@ void collect(const Node& n, std::vector<std::string>& scalars, std::vector<std::
   for (const NodePtr& a : n.args) collect(*a, scalars, series);
 }
 
-double reduce(const std::string& fn, const std::vector<double>& rows, const std::vector<double>* t,
-              double arg, const std::string& name) {
+double reduce(const std::string& fn_in, const std::vector<double>& rows, const std::vector<double>* t,
+              double arg_in, const std::string& name) {
   if (rows.empty()) return kNaN;
+  // x_last(s, w) is x_from(s, t_final - w): the last w seconds of the run, whatever its length.
+  std::string fn = fn_in;
+  double arg = arg_in;
+  if (fn.ends_with("_last")) {
+    if (t == nullptr || t->size() != rows.size() || t->empty())
+      throw std::invalid_argument(fn + "(" + name + ", ...) needs the times of a run");
+    fn = fn.substr(0, fn.size() - 5) + "_from";
+    arg = t->back() - arg;
+  }
   if (fn == "initial") return rows.front();
   if (fn == "final") return rows.back();
   const bool timed = fn == "at" || fn.ends_with("_from") || fn == "period";

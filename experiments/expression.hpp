@@ -22,6 +22,9 @@
 //   max(s), min(s), mean(s), sum(s), maxabs(s)   over the rows after the initial one (the steps)
 //   at(s, t)             the row with the largest time <= t
 //   max_from(s, t0), min_from(s, t0), mean_from(s, t0), maxabs_from(s, t0)   over steps with time >= t0
+//   max_last(s, w), min_last(s, w), mean_last(s, w), maxabs_last(s, w), period_last(s, w)
+//                        the same over the last w seconds (time >= final time - w), whatever
+//                        the run's length (a quick tier's shorter runs read the same window)
 //   period(s), period_from(s, t0)   the mean time between successive upward crossings of the
 //                        series' mean (over the steps, or those with time >= t0), crossings
 //                        interpolated linearly; NaN with fewer than two crossings

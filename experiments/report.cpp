@@ -2,15 +2,11 @@
 
 #include <cmath>
 #include <fstream>
-#include <map>
 #include <sstream>
 #include <stdexcept>
-#include <thread>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
-
-#include "runfile/build_info.hpp"
 
 namespace pbdbench::experiments {
 
@@ -36,9 +32,14 @@ std::string cell(const std::string& text) {
   return out;
 }
 
-std::string first_sentence(const std::string& text) {
-  const size_t dot = text.find(". ");
-  return dot == std::string::npos ? text : text.substr(0, dot + 1);
+// A Markdown block quote of a text that may span lines.
+std::string block_quote(const std::string& text) {
+  std::string out = "> ";
+  for (char c : text) {
+    out += c;
+    if (c == '\n') out += "> ";
+  }
+  return out + "\n";
 }
 
 std::string anchor(const std::string& id) {
@@ -66,22 +67,101 @@ std::string json_string(const std::string& s) {
 
 std::string json_number(double v) { return std::isfinite(v) ? fmt::format("{}", v) : "null"; }
 
-// The measures a part's rules read, with their values: the "numbers measured" of a row.
-std::string measured_cell(const ClaimResult& c) {
+std::string with_units(double v, const std::string& units) {
+  return number(v) + (units.empty() || units == "1" ? "" : " " + units);
+}
+
+std::string measure_value(const MeasureResult& m) {
+  if (!m.interval) return with_units(m.value, m.units);
+  return fmt::format("{} [{}, {}]{}", number(m.value), number(m.lo), number(m.hi),
+                     m.units.empty() || m.units == "1" ? "" : " " + m.units);
+}
+
+// The measures a part's rule reads, with their values.
+std::string measured(const ClaimResult& c, const PartResult& p) {
   std::vector<std::string> shown;
+  const std::string text = p.rule + " " + p.requires_;
   for (const MeasureResult& m : c.measures) {
+    // A whole-word match of the measure's name in the rule.
+    size_t at = 0;
     bool used = false;
-    for (const PartResult& p : c.parts)
-      if (!p.rule.empty() && p.rule.find(m.name) != std::string::npos) used = true;
-    if (used)
-      shown.push_back(fmt::format("{} = {}{}", m.name, number(m.value), m.units.empty() || m.units == "1" ? "" : " " + m.units));
+    while ((at = text.find(m.name, at)) != std::string::npos) {
+      const bool left = at == 0 || !(std::isalnum(static_cast<unsigned char>(text[at - 1])) || text[at - 1] == '_');
+      const size_t end = at + m.name.size();
+      const bool right = end >= text.size() || !(std::isalnum(static_cast<unsigned char>(text[end])) || text[end] == '_');
+      if (left && right) used = true;
+      at = end;
+    }
+    if (used) shown.push_back(fmt::format("{} = {}", m.name, measure_value(m)));
   }
   return fmt::format("{}", fmt::join(shown, "; "));
 }
 
-std::string verdict_badge(Verdict v) { return fmt::format("**{}**", to_string(v)); }
+std::string verdict_with_reason(const PartResult& p, ExperimentKind kind) {
+  std::string v = fmt::format("**{}**", verdict_word(p.verdict, kind));
+  if (p.verdict == Verdict::Identity || p.verdict == Verdict::SetupUnknown)
+    v += fmt::format(" (the rule {} here)", std::isnan(p.outcome) ? "is not measured" : p.outcome != 0.0 ? "holds" : "does not hold");
+  if (!p.reason.empty()) v += ": " + p.reason;
+  return v;
+}
 
-std::string part_id(const ClaimResult& c, size_t k) { return fmt::format("{}.{}", c.id, k + 1); }
+std::string registration_text(const RegistrationStatus& st) {
+  using State = RegistrationStatus::State;
+  const std::string hash = st.sha256.substr(0, 12);
+  switch (st.state) {
+    case State::Unregistered:
+      return fmt::format("not registered (file sha256 {}): nothing shows that its rules came before its results", hash);
+    case State::Modified:
+      return fmt::format("changed since its registration of {} (file sha256 {}, registered {}): register the "
+                         "revision (`pbdbench register`) before trusting the order of rules and results",
+                         st.latest->registered, hash, st.latest->sha256.substr(0, 12));
+    case State::Registered: break;
+  }
+  std::string out = fmt::format("registered {} (sha256 {})", st.latest->registered, hash);
+  if (!st.commit.empty()) out += fmt::format(" in commit {} ({})", st.commit.substr(0, 10), st.commit_date);
+  if (st.before_results)
+    out += *st.before_results ? fmt::format("; the results come from a build of commit {}, which contains it: "
+                                            "registered before its results",
+                                            st.results_commit.substr(0, 10))
+                              : fmt::format("; the results come from a build of commit {}, which does not contain "
+                                            "the registration: the results came first",
+                                            st.results_commit.substr(0, 10));
+  else
+    out += "; whether before its results is not checked: " + st.why_unchecked;
+  return out;
+}
+
+// The short form for a table cell.
+std::string registration_cell(const RegistrationStatus* st) {
+  if (st == nullptr) return "";
+  using State = RegistrationStatus::State;
+  if (st->state == State::Unregistered) return "not registered";
+  if (st->state == State::Modified) return "changed since registered";
+  std::string out = st->latest->registered.substr(0, 10);
+  if (st->before_results) out += *st->before_results ? ", before results" : ", after results";
+  if (!st->revisions.empty()) out += fmt::format(", revised {}×", st->revisions.size());
+  return out;
+}
+
+void revisions_section(std::ostringstream& md, const RegistrationStatus* st) {
+  if (st == nullptr || st->revisions.empty()) return;
+  for (const Registration* r : st->revisions) {
+    const EarlierResult& e = *r->earlier;
+    md << fmt::format("**Revised after results** (registered {}): {}\n\n", r->registered, r->note);
+    md << fmt::format("The version it revised had results ({}): verdict **{}**.\n\n", e.source, e.verdict);
+    if (!e.parts.empty()) {
+      md << "| earlier part | it said | its rule | its verdict |\n|---|---|---|---|\n";
+      for (const auto& [id, verdict] : e.parts) {
+        const auto rule = e.rules.find(id);
+        const auto says = e.says.find(id);
+        md << fmt::format("| {} | {} | {} | {} |\n", id, says == e.says.end() ? "" : cell(says->second),
+                          rule == e.rules.end() || rule->second.empty() ? "" : "`" + cell(rule->second) + "`",
+                          verdict);
+      }
+      md << "\n";
+    }
+  }
+}
 
 // The table of an experiment's measures: name, value, units, what it is, how it was taken.
 void measures_table(std::ostringstream& md, const ClaimResult& c) {
@@ -92,182 +172,300 @@ void measures_table(std::ostringstream& md, const ClaimResult& c) {
     if (!m.run.empty())
       how += m.trials.size() > 1 ? fmt::format(" of run {}, {} over {} trials", m.run, m.over_trials, m.trials.size())
                                  : fmt::format(" of run {}", m.run);
-    md << fmt::format("| {} | {} | {} | {} | {} |\n", m.name, number(m.value), m.units, cell(m.doc), cell(how));
+    if (!m.timing.empty())
+      how += fmt::format(" per repeat of timing group {}: median of {}, interval of the median at {:.1f} %", m.timing,
+                         m.trials.size(), 100.0 * m.coverage);
+    else if (m.interval)
+      how += " (interval: at the ends of the intervals it reads)";
+    const std::string value =
+        m.interval ? fmt::format("{} [{}, {}]", number(m.value), number(m.lo), number(m.hi)) : number(m.value);
+    md << fmt::format("| {} | {} | {} | {} | {} |\n", m.name, value, m.units, cell(m.doc), cell(how));
   }
   md << "\n";
 }
 
-}  // namespace
+void timings_table(std::ostringstream& md, const ClaimResult& c) {
+  for (const TimingResult& t : c.timings) {
+    md << fmt::format("Timing group **{}**: {} repeats after a warm-up, runs interleaved (order rotated each repeat), "
+                      "solver time per step; measured on {}, {}{}.\n\n",
+                      t.group, t.seconds_per_step.size(), t.machine, t.build, t.reused ? " (record reused)" : "");
+    md << "| run | median (ms/step) | 95 % interval of the median | min | max | status |\n|---|---|---|---|---|---|\n";
+    for (size_t k = 0; k < t.runs.size(); ++k) {
+      std::vector<double> v;
+      for (const auto& row : t.seconds_per_step) v.push_back(row[k] * 1e3);
+      const MedianInterval mi = median_interval(v);
+      const double lo = v.empty() ? 0.0 : *std::min_element(v.begin(), v.end());
+      const double hi = v.empty() ? 0.0 : *std::max_element(v.begin(), v.end());
+      md << fmt::format("| {} | {} | [{}, {}] | {} | {} | {} |\n", t.runs[k], number(mi.median), number(mi.lo),
+                        number(mi.hi), number(lo), number(hi), t.status[k]);
+    }
+    md << "\n";
+  }
+}
 
+void runs_table(std::ostringstream& md, const ClaimResult& c) {
+  if (c.runs.empty()) return;
+  md << "| run | solver | trials | complete | exploded | failed |\n|---|---|---|---|---|---|\n";
+  for (const RunResult& r : c.runs) {
+    std::string solver = r.solver;
+    if (r.solver == "pbd-seed")
+      solver += r.seed_fixes.empty() ? " (as printed)" : fmt::format(" (fixes {})", fmt::join(r.seed_fixes, " "));
+    if (r.timing_only) {
+      md << fmt::format("| {} | {} | timed only | | | |\n", r.name, solver);
+      continue;
+    }
+    md << fmt::format("| {} | {} | {} | {} | {} | {} |\n", r.name, solver, r.files.size(), r.complete, r.exploded,
+                      r.failed + r.incomplete);
+  }
+  md << "\n";
+}
 
-namespace {
+const RegistrationStatus* status_of(const ReportContext& ctx, const std::string& id) {
+  const auto it = ctx.registration.find(id);
+  return it == ctx.registration.end() ? nullptr : &it->second;
+}
 
-// The reproductions' report: per experiment the setup, the figure, and a table of the published
-// numbers, ours, and the verdicts.
+std::string counts_phrase(const int counts[], ExperimentKind kind, const std::vector<Verdict>& order) {
+  std::vector<std::string> out;
+  for (Verdict v : order) out.push_back(fmt::format("{} {}", counts[static_cast<int>(v)], verdict_word(v, kind)));
+  return fmt::format("{}", fmt::join(out, ", "));
+}
+
+// The reproductions' report.
 std::string reproduction_markdown(const std::vector<ClaimResult>& items, const ReportContext& ctx) {
   std::ostringstream md;
-  int parts[3] = {0, 0, 0};
-  for (const ClaimResult& c : items)
-    for (const PartResult& p : c.parts) ++parts[static_cast<int>(p.verdict)];
   md << "# Reproductions\n\n"
-     << "Published results of the papers that define position-based dynamics in practice, run "
-        "again here. Each reproduction is a file in `reproductions/experiments/`, written before its result "
-        "was known: the scenarios and the sweep, the measures, and for each published number the "
-        "relation or tolerance expected of ours. A part is **reproduced** when its rule holds and "
-        "**not reproduced** when it does not (the section says what was measured instead); "
-        "**not testable** says why not. Costs are ratios measured in one run on one machine, never "
-        "absolute times against the papers' hardware. The seed article's claims, put to the test "
-        "the same way, are in [claims/](claims/README.md).\n\n"
-     << fmt::format("Generated by `{}` ({} tier) on {}, {}{}. Do not edit: run the command again.\n\n",
-                    ctx.command, to_string(ctx.tier), ctx.machine, ctx.build,
-                    ctx.jobs > 1 ? fmt::format(", {} runs at a time (wall-clock ratios were measured "
-                                               "with the cores shared)", ctx.jobs)
-                                 : std::string())
-     << fmt::format("**{} experiments, {} published results: {} reproduced, {} not reproduced, {} not "
-                    "testable here.**\n\n",
-                    items.size(), parts[0] + parts[1] + parts[2], parts[0], parts[1], parts[2]);
-  md << "| experiment | published | source | ours | rule | verdict |\n|---|---|---|---|---|---|\n";
+     << "Published results of the papers that define position-based dynamics in practice, run again here. "
+        "Each reproduction is a file in `reproductions/experiments/`, registered before its result "
+        "(`reproductions/registry.toml`): the setup, with every value labelled as taken from the paper "
+        "(with its source) or assumed (with why), the runs, the measures, and for each published number "
+        "the rule that decides it. A part is **reproduced** when its rule holds and **not reproduced** "
+        "when it does not; **inconclusive** when a run it needs failed or left its valid regime, or a "
+        "timing's 95 % interval straddles the threshold; **setup unknown** when the paper's setup cannot "
+        "be recovered (our outcome under an assumed setup is shown, not counted); **identity** when the "
+        "check holds by construction (shown, not counted); **not testable** says why not. Costs are "
+        "ratios of repeated, interleaved measurements on one machine (median and 95 % interval), never "
+        "absolute times against the papers' hardware. The seed article's claims, put to the test the same "
+        "way, are in [claims/](claims/README.md).\n\n"
+     << fmt::format("Generated by `{}` ({} tier) on {}, {}. Do not edit: run the command again.\n\n", ctx.command,
+                    to_string(ctx.tier), ctx.machine, ctx.build)
+     << "**" << part_counts_line(items) << ".**\n\n**" << experiment_counts_line(items) << ".**\n\n";
+  md << "| part | published | source | ours | rule | verdict |\n|---|---|---|---|---|---|\n";
   for (const ClaimResult& c : items) {
     for (size_t k = 0; k < c.parts.size(); ++k) {
       const PartResult& p = c.parts[k];
-      const std::string ours =
-          p.ours.empty() ? "" : fmt::format("{} {}", number(p.ours_value), p.ours_units == "1" ? "" : p.ours_units);
-      md << fmt::format("| [{}](#{}) {} | {} | {} | {} | {} | {} |\n", part_id(c, k), anchor(c.id),
-                        cell(p.says), cell(p.published), cell(p.source), cell(ours),
-                        p.rule.empty() ? "" : "`" + cell(p.rule) + "`",
-                        fmt::format("**{}**{}", verdict_word(p.verdict, c.kind),
-                                    p.reason.empty() ? "" : ": " + cell(p.reason)));
+      std::string ours;
+      if (!p.ours.empty())
+        for (const MeasureResult& m : c.measures)
+          if (m.name == p.ours) ours = measure_value(m);
+      md << fmt::format("| [{}](#{}) {} | {} | {} | {} | {} | **{}** |\n", part_id(c, k), anchor(c.id), cell(p.says),
+                        cell(p.published), cell(p.source), cell(ours), p.rule.empty() ? "" : "`" + cell(p.rule) + "`",
+                        verdict_word(p.verdict, c.kind));
     }
   }
   md << "\n";
   for (const ClaimResult& c : items) {
+    const RegistrationStatus* st = status_of(ctx, c.id);
     md << fmt::format("## {}\n\n", c.id);
-    md << fmt::format("**{}**, {}. {}\n\n", c.paper, c.section, c.claim);
+    md << fmt::format("**{}**, {}. {}\n\nVerdict: **{}**.\n\n", c.paper, c.section, c.claim,
+                      verdict_word(c.verdict, c.kind));
     md << "**Setup.** " << c.experiment << fmt::format(" (`{}`)\n\n", c.file.filename().string());
-    if (c.figure.kind != "none")
-      md << fmt::format("![{}]({})\n\n", c.id, (ctx.figures_dir / (c.id + ".png")).generic_string());
+    if (!c.setup.empty()) {
+      md << "| setup | value | from | source, or why |\n|---|---|---|---|\n";
+      for (const SetupSpec& s : c.setup)
+        md << fmt::format("| {} | {} | {} | {} |\n", cell(s.what), cell(s.value), to_string(s.from),
+                          cell(s.from == SetupFrom::Paper ? s.source : s.why));
+      md << "\n";
+    }
+    if (st != nullptr) md << "**Registration.** " << registration_text(*st) << ".\n\n";
+    revisions_section(md, st);
     md << "| part | published | source | ours | rule | verdict |\n|---|---|---|---|---|---|\n";
     for (size_t k = 0; k < c.parts.size(); ++k) {
       const PartResult& p = c.parts[k];
-      std::string verdict = verdict_word(p.verdict, c.kind);
-      if (!p.reason.empty()) verdict += ": " + p.reason;
-      if (p.timing) verdict += " (wall-clock ratio, machine dependent)";
-      const std::string ours =
-          p.ours.empty() ? "" : fmt::format("{} = {} {}", p.ours, number(p.ours_value), p.ours_units == "1" ? "" : p.ours_units);
+      const std::string ours = p.ours.empty() ? "" : fmt::format("{} = {}", p.ours, with_units(p.ours_value, p.ours_units));
+      std::string rule = p.rule.empty() ? "" : "`" + cell(p.rule) + "`";
+      if (!p.requires_.empty()) rule += " (requires `" + cell(p.requires_) + "`)";
       md << fmt::format("| {}: {} | {} | {} | {} | {} | {} |\n", part_id(c, k), cell(p.says), cell(p.published),
-                        cell(p.source), cell(ours), p.rule.empty() ? "" : "`" + cell(p.rule) + "`", cell(verdict));
+                        cell(p.source), cell(ours), rule, cell(verdict_with_reason(p, c.kind)));
     }
     md << "\n";
+    if (c.figure.kind != "none")
+      md << fmt::format("![{}]({})\n\n", c.id, (ctx.figures_dir / (c.id + ".png")).generic_string());
     measures_table(md, c);
+    timings_table(md, c);
+    runs_table(md, c);
   }
   return md.str();
 }
 
 }  // namespace
 
-std::string machine_description() {
-  std::string model = "unknown CPU";
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("model name", 0) == 0) {
-      const size_t colon = line.find(':');
-      if (colon != std::string::npos) model = line.substr(colon + 2);
-      break;
-    }
+std::string part_id(const ClaimResult& c, size_t k) { return fmt::format("{}.{}", c.id, k + 1); }
+
+std::string part_counts_line(const std::vector<ClaimResult>& results) {
+  if (results.empty()) return "no parts";
+  const ExperimentKind kind = results.front().kind;
+  const PartCounts pc = count_parts(results);
+  int article = 0, beyond = 0;
+  for (int k = 0; k < kVerdictCount; ++k) article += pc.article[k], beyond += pc.beyond[k];
+  if (kind == ExperimentKind::Reproduction) {
+    return fmt::format("{} published results, counted by part: {}; {} {} shown but not counted", article,
+                       counts_phrase(pc.article, kind,
+                                     {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive,
+                                      Verdict::SetupUnknown, Verdict::NotTestable}),
+                       pc.article[static_cast<int>(Verdict::Identity)],
+                       pc.article[static_cast<int>(Verdict::Identity)] == 1 ? "identity" : "identities");
   }
-  return fmt::format("{}, {} cores", model, std::thread::hardware_concurrency());
+  std::string out = fmt::format(
+      "{} {} in the article's regime: {}", article, article == 1 ? "part" : "parts",
+      counts_phrase(pc.article, kind,
+                    {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive, Verdict::NotTestable}));
+  if (beyond > 0)
+    out += fmt::format("; {} beyond it: {}", beyond,
+                       counts_phrase(pc.beyond, kind,
+                                     {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive,
+                                      Verdict::NotTestable}));
+  return out;
 }
 
-std::string build_description() {
-  const BuildInfo& b = build_info();
-  std::string commit = b.git_commit;
-  return fmt::format("pbdbench {} ({} build, {}, commit {})", b.version, b.build_type, b.compiler, commit);
+std::string experiment_counts_line(const std::vector<ClaimResult>& results) {
+  if (results.empty()) return "no experiments";
+  const ExperimentKind kind = results.front().kind;
+  int counts[kVerdictCount] = {};
+  for (const ClaimResult& r : results) ++counts[static_cast<int>(r.verdict)];
+  std::vector<Verdict> order = {Verdict::Supported, Verdict::Contradicted, Verdict::Mixed, Verdict::Inconclusive,
+                                Verdict::NotTestable};
+  if (kind == ExperimentKind::Reproduction) order.push_back(Verdict::SetupUnknown);
+  return fmt::format("{} {}, each from its decided parts in {} regime: {}", results.size(),
+                     kind == ExperimentKind::Claim ? (results.size() == 1 ? "claim with an experiment" : "claims with an experiment")
+                                                   : (results.size() == 1 ? "experiment" : "experiments"),
+                     kind == ExperimentKind::Claim ? "the article's" : "the paper's", counts_phrase(counts, kind, order));
 }
 
 std::string report_markdown(const std::vector<ClaimResult>& claims, const ReportContext& ctx) {
   if (!claims.empty() && claims.front().kind == ExperimentKind::Reproduction)
     return reproduction_markdown(claims, ctx);
   std::ostringstream md;
-  int counts[3] = {0, 0, 0};
-  for (const ClaimResult& c : claims) ++counts[static_cast<int>(c.verdict)];
-  md << "# The seed article on trial\n\n"
-     << "Every claim of the seed article (its index: `../shared/seed/CLAIMS.md`) is put to an "
-        "experiment here. Each experiment is a file in `claims/experiments/`, written before its "
-        "result was known: the runs it makes (scenario, solver variants, seeded trials), what it "
-        "measures from their run files, and the rule, with its thresholds, that decides each part "
-        "of the claim. A part is **supported** when its rule holds, **contradicted** when it does "
-        "not, and **not testable** here when it names something the harness cannot measure (the "
-        "reason is given) or a measure it needs could not be taken. A claim is contradicted when "
-        "any of its parts is, supported when at least one part is and none is contradicted.\n\n"
-     << "`pbdbench` solvers: `pbd-seed` is the article's own code to the letter (its departures "
-        "from the published method are listed in `docs/seed-departures.md`), `pbd` is Mueller et "
-        "al. 2007, `xpbd` is Macklin et al. 2016, `force-symplectic` an explicit force-based "
-        "integrator, `ref-*` the implicit reference integrators and `global-*` the converged "
-        "global projection (`docs/solvers.md`).\n\n"
-     << fmt::format("Generated by `{}` ({} tier) on {}, {}. Do not edit: run the command again.\n\n",
-                    ctx.command, to_string(ctx.tier), ctx.machine, ctx.build)
-     << fmt::format("**{} claims: {} supported, {} contradicted, {} not testable here.**\n\n",
-                    claims.size(), counts[0], counts[1], counts[2]);
+  md << "# The seed article on trial\n\n";
+  if (ctx.index != nullptr) {
+    const SourceText& s = ctx.index->source;
+    md << fmt::format("**The article.** {} — {}, in {}. Author: {}. {} The text as received has SHA-256 `{}`; "
+                      "its claims, with the original sentences and English translations, are indexed in "
+                      "`claims/index.toml`.\n\n",
+                      s.title, s.kind, s.language, s.author, s.origin, s.sha256);
+  }
+  md << "Every claim of the article that an experiment can decide is put to one here. Each experiment is a file "
+        "in `claims/experiments/`, registered before its results (`claims/registry.toml`, `pbdbench register`): "
+        "the runs it makes, what it measures from their run files, which costs it times, and for each part of "
+        "the claim the article's sentence (original and translation), the reading tested, and the rule, with its "
+        "thresholds, that decides it. Parts run first in the regime the article means (its iteration counts, "
+        "steps and scenes); a part that goes beyond that regime is labelled *beyond* and does not make the "
+        "claim's verdict. A part **judges the listing** (the article's code as printed, whose defects are judged "
+        "once, there) or **judges the method** (run by the listing repaired, `pbd-seed` with the defect fixes "
+        "D1 D3 D4 D5 D6 D7 D8 D9 of `docs/seed-departures.md`, or by `pbd`).\n\n"
+     << "A part is **supported** when its rule holds, **contradicted** when it does not, **inconclusive** when a "
+        "run it needs failed, exploded without the part accounting for it, or left the regime the part requires, "
+        "or when a timing's 95 % interval straddles the threshold, and **not testable** when it names something "
+        "the harness cannot measure (the reason is given). A claim is **supported** when all of its decided "
+        "parts in the article's regime are, **contradicted** when all are contradicted, **mixed** when both "
+        "occur, and **inconclusive** when none is decided. Costs are measured like a benchmark: repeated, "
+        "interleaved runs, the median and a 95 % interval.\n\n"
+     << "`pbdbench` solvers: `pbd-seed` is the article's own code to the letter unless fixes are named, `pbd` is "
+        "Mueller et al. 2007, `xpbd` is Macklin et al. 2016, `force-symplectic` an explicit force-based "
+        "integrator, `ref-*` the implicit reference integrators and `global-*` the converged global projection "
+        "(`docs/solvers.md`).\n\n"
+     << fmt::format("Generated by `{}` ({} tier) on {}, {}. Do not edit: run the command again.\n\n", ctx.command,
+                    to_string(ctx.tier), ctx.machine, ctx.build)
+     << "**" << part_counts_line(claims) << ".**\n\n**" << experiment_counts_line(claims) << ".**\n\n";
+  if (ctx.index != nullptr) {
+    int untestable = 0;
+    for (const IndexedClaim& c : ctx.index->claims) untestable += !c.untestable.empty();
+    md << fmt::format("The index holds {} claims: {} with an experiment, {} not testable here (listed at the end "
+                      "with their reasons).\n\n",
+                      ctx.index->claims.size(), ctx.index->claims.size() - untestable, untestable);
+  }
 
   md << "## Verdicts\n\n"
-     << "| id | the claim | the experiment | measured | rule | verdict |\n"
-     << "|---|---|---|---|---|---|\n";
+     << "| id | the claim | parts | verdict | registered |\n|---|---|---|---|---|\n";
   for (const ClaimResult& c : claims) {
-    std::vector<std::string> rules;
-    for (size_t k = 0; k < c.parts.size(); ++k) {
-      const PartResult& p = c.parts[k];
-      rules.push_back(fmt::format("({}) {} → {}", k + 1,
-                                  p.rule.empty() ? "not testable" : "`" + p.rule + "`",
-                                  to_string(p.verdict)));
+    int counts[kVerdictCount] = {};
+    int beyond = 0;
+    for (const PartResult& p : c.parts) {
+      if (p.beyond) ++beyond;
+      else ++counts[static_cast<int>(p.verdict)];
     }
-    md << fmt::format("| [{}](#{}) | {} | {} | {} | {} | {} |\n", c.id, anchor(c.id), cell(c.claim),
-                      cell(first_sentence(c.experiment)), cell(measured_cell(c)),
-                      cell(fmt::format("{}", fmt::join(rules, "; "))), verdict_badge(c.verdict));
+    std::vector<std::string> parts;
+    for (Verdict v : {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive, Verdict::NotTestable})
+      if (counts[static_cast<int>(v)] > 0) parts.push_back(fmt::format("{} {}", counts[static_cast<int>(v)], to_string(v)));
+    if (beyond > 0) parts.push_back(fmt::format("{} beyond", beyond));
+    std::string claim = c.claim;
+    if (ctx.index != nullptr)
+      if (const IndexedClaim* ic = ctx.index->find(c.id)) claim = ic->claim;
+    md << fmt::format("| [{}](#{}) | {} | {} | **{}** | {} |\n", c.id, anchor(c.id), cell(claim),
+                      fmt::join(parts, ", "), to_string(c.verdict), registration_cell(status_of(ctx, c.id)));
   }
   md << "\n";
 
   for (const ClaimResult& c : claims) {
+    const IndexedClaim* ic = ctx.index != nullptr ? ctx.index->find(c.id) : nullptr;
+    const RegistrationStatus* st = status_of(ctx, c.id);
     md << fmt::format("## {}\n\n", c.id);
-    md << fmt::format("Section {} of the article. Verdict: {}.\n\n", c.section, verdict_badge(c.verdict));
-    md << "**The claim.** " << c.claim << "\n\n";
+    md << fmt::format("Section {} of the article. Verdict: **{}**.\n\n", c.section, to_string(c.verdict));
+    md << "**The claim.** " << (ic != nullptr ? ic->claim : c.claim) << "\n\n";
+    if (ic != nullptr) md << block_quote(ic->original) << ">\n" << block_quote(ic->translation) << "\n";
     md << "**The experiment.** " << c.experiment << fmt::format(" (`{}`)\n\n", c.file.filename().string());
-    md << "| part | what it says | rule | verdict |\n|---|---|---|---|\n";
+    if (st != nullptr) md << "**Registration.** " << registration_text(*st) << ".\n\n";
+    revisions_section(md, st);
     for (size_t k = 0; k < c.parts.size(); ++k) {
       const PartResult& p = c.parts[k];
-      std::string verdict = to_string(p.verdict);
-      if (!p.reason.empty()) verdict += ": " + p.reason;
-      if (p.timing) verdict += " (wall-clock times, machine dependent)";
-      md << fmt::format("| {} | {} | {} | {} |\n", part_id(c, k), cell(p.says),
-                        p.rule.empty() ? "" : "`" + cell(p.rule) + "`", cell(verdict));
-    }
-    md << "\n";
-    measures_table(md, c);
-    if (!c.runs.empty()) {
-      md << "| run | trials | complete | exploded | failed |\n|---|---|---|---|---|\n";
-      for (const RunResult& r : c.runs)
-        md << fmt::format("| {} | {} | {} | {} | {} |\n", r.name, r.files.size(), r.complete, r.exploded,
-                          r.failed + r.incomplete);
+      md << fmt::format("**{}** — judges the {}{} — {}\n\n", part_id(c, k), to_string(p.judges),
+                        p.beyond ? ", **beyond the article's regime**" : "",
+                        verdict_with_reason(p, c.kind));
+      md << block_quote(p.quote) << ">\n" << block_quote(p.translation) << "\n";
+      md << "- Tested: " << p.says << "\n";
+      if (!p.reading.empty()) md << "- Reading: " << p.reading << "\n";
+      if (!p.rule.empty()) {
+        md << "- Rule: `" << p.rule << "`";
+        if (!p.requires_.empty()) md << ", decided only when `" << p.requires_ << "`";
+        md << "\n";
+        const std::string m = measured(c, p);
+        if (!m.empty()) md << "- Measured: " << m << "\n";
+      }
+      if (!p.judged_with.empty()) md << "- Runs: " << fmt::format("{}", fmt::join(p.judged_with, "; ")) << "\n";
       md << "\n";
     }
-    if (c.figure.kind != "none") {
-      const fs::path fig = ctx.figures_dir / (c.id + ".png");
-      md << fmt::format("![{}]({})\n\n", c.id, fig.generic_string());
+    measures_table(md, c);
+    timings_table(md, c);
+    runs_table(md, c);
+    if (c.figure.kind != "none")
+      md << fmt::format("![{}]({})\n\n", c.id, (ctx.figures_dir / (c.id + ".png")).generic_string());
+  }
+
+  if (ctx.index != nullptr) {
+    md << "## Claims not testable here\n\n";
+    for (const IndexedClaim& ic : ctx.index->claims) {
+      if (ic.untestable.empty()) continue;
+      md << fmt::format("**{}** (section {}). {}\n\n", ic.id, ic.section, ic.claim);
+      md << block_quote(ic.original) << ">\n" << block_quote(ic.translation) << "\n";
+      md << "Not testable here: " << ic.untestable << "\n\n";
     }
   }
   return md.str();
 }
 
-std::string results_json(const std::vector<ClaimResult>& claims, const ReportContext& ctx,
-                         const fs::path& relative_to) {
+std::string results_json(const std::vector<ClaimResult>& claims, const ReportContext& ctx, const fs::path& relative_to) {
   std::ostringstream js;
-  js << "{\n  \"tier\": " << json_string(to_string(ctx.tier)) << ",\n  \"machine\": "
-     << json_string(ctx.machine) << ",\n  \"build\": " << json_string(ctx.build)
-     << ",\n  \"command\": " << json_string(ctx.command) << ",\n  \"claims\": [\n";
+  js << "{\n  \"tier\": " << json_string(to_string(ctx.tier)) << ",\n  \"machine\": " << json_string(ctx.machine)
+     << ",\n  \"build\": " << json_string(ctx.build) << ",\n  \"command\": " << json_string(ctx.command)
+     << ",\n  \"parts\": " << json_string(part_counts_line(claims))
+     << ",\n  \"experiments\": " << json_string(experiment_counts_line(claims)) << ",\n  \"claims\": [\n";
   for (size_t i = 0; i < claims.size(); ++i) {
     const ClaimResult& c = claims[i];
+    const RegistrationStatus* st = status_of(ctx, c.id);
     js << "    {\"id\": " << json_string(c.id) << ", \"section\": " << json_string(c.section)
- << ", \"kind\": " << json_string(to_string(c.kind)) << ", \"paper\": " << json_string(c.paper)
+       << ", \"kind\": " << json_string(to_string(c.kind)) << ", \"paper\": " << json_string(c.paper)
        << ", \"verdict\": " << json_string(verdict_word(c.verdict, c.kind))
+       << ", \"sha256\": " << json_string(st != nullptr ? st->sha256 : "")
        << ",\n     \"claim\": " << json_string(c.claim) << ",\n     \"figure\": {\"kind\": "
        << json_string(c.figure.kind) << ", \"series\": " << json_string(c.figure.series) << ", \"runs\": [";
     for (size_t k = 0; k < c.figure.runs.size(); ++k) js << (k ? ", " : "") << json_string(c.figure.runs[k]);
@@ -277,8 +475,9 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
        << ", \"title\": " << json_string(c.figure.title) << "},\n     \"runs\": [";
     for (size_t r = 0; r < c.runs.size(); ++r) {
       const RunResult& run = c.runs[r];
-      js << (r ? ",\n       " : "\n       ") << "{\"name\": " << json_string(run.name) << ", \"complete\": "
-         << run.complete << ", \"exploded\": " << run.exploded << ", \"failed\": " << run.failed << ", \"files\": [";
+      js << (r ? ",\n       " : "\n       ") << "{\"name\": " << json_string(run.name) << ", \"solver\": "
+         << json_string(run.solver) << ", \"complete\": " << run.complete << ", \"exploded\": " << run.exploded
+         << ", \"failed\": " << run.failed << ", \"files\": [";
       for (size_t k = 0; k < run.files.size(); ++k) {
         std::error_code ec;
         fs::path p = fs::relative(run.files[k], relative_to, ec);
@@ -292,7 +491,9 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
       const MeasureResult& mr = c.measures[m];
       js << (m ? ",\n       " : "\n       ") << "{\"name\": " << json_string(mr.name) << ", \"value\": "
          << json_number(mr.value) << ", \"units\": " << json_string(mr.units) << ", \"run\": " << json_string(mr.run)
-         << ", \"trials\": [";
+         << ", \"timing\": " << json_string(mr.timing);
+      if (mr.interval) js << ", \"lo\": " << json_number(mr.lo) << ", \"hi\": " << json_number(mr.hi);
+      js << ", \"trials\": [";
       for (size_t k = 0; k < mr.trials.size(); ++k) js << (k ? ", " : "") << json_number(mr.trials[k]);
       js << "]}";
     }
@@ -300,8 +501,10 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
     for (size_t k = 0; k < c.parts.size(); ++k) {
       const PartResult& p = c.parts[k];
       js << (k ? ",\n       " : "\n       ") << "{\"id\": " << json_string(part_id(c, k)) << ", \"says\": "
-         << json_string(p.says) << ", \"rule\": " << json_string(p.rule) << ", \"verdict\": "
-         << json_string(verdict_word(p.verdict, c.kind)) << ", \"reason\": " << json_string(p.reason)
+         << json_string(p.says) << ", \"rule\": " << json_string(p.rule) << ", \"requires\": "
+         << json_string(p.requires_) << ", \"verdict\": " << json_string(verdict_word(p.verdict, c.kind))
+         << ", \"reason\": " << json_string(p.reason) << ", \"judges\": " << json_string(to_string(p.judges))
+         << ", \"regime\": " << json_string(p.beyond ? "beyond" : "article")
          << ", \"published\": " << json_string(p.published) << ", \"source\": " << json_string(p.source)
          << ", \"ours\": " << json_string(p.ours) << ", \"ours_value\": "
          << (p.ours.empty() ? std::string("null") : json_number(p.ours_value))
@@ -317,7 +520,7 @@ std::string verdicts_toml(const std::vector<ClaimResult>& claims, Tier tier) {
   std::ostringstream out;
   out << "# The verdict of every part of every experiment, " << to_string(tier) << " tier, recorded by\n"
       << "# `pbdbench claims|paper --tier " << to_string(tier) << " --record FILE`. The test suite runs the "
-      << "quick tier and fails\n# when a verdict differs. Parts whose rules read wall-clock times are "
+      << "quick tier and fails\n# when a verdict differs. Parts whose rules read timing measures are "
       << "recorded but not\n# compared (marked timing).\n";
   for (const ClaimResult& c : claims) {
     out << "\n# " << c.id << ": " << verdict_word(c.verdict, c.kind) << "\n";

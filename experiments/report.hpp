@@ -1,19 +1,25 @@
-// What `pbdbench claims` writes from the evaluated claims:
+// What `pbdbench claims` and `pbdbench paper` write from the evaluated experiments:
 //
-//   <out>/README.md      the report: one row per claim (id, claim, experiment, numbers measured,
-//                        rule, verdict), then a section per claim with its parts, measures, runs
-//                        and figure; it reads on its own, for someone who never saw the code
+//   <out>/README.md      the report: the counts by part first (what they count is said), then a
+//                        row per claim (or per published number), then a section per experiment
+//                        with the article's words or the paper's setup, each part's rule and
+//                        verdict, its registration, measures, timings, runs and figure; it reads
+//                        on its own, for someone who never saw the code
 //   <out>/claims.json    everything measured, for the figures (scripts/plot_claims.py) and for
-//                        anyone who wants the numbers
+//   (reproductions.json) anyone who wants the numbers
 //   verdict records      `--record FILE` writes each part's verdict; `--expect FILE` compares
-//                        (the test suite runs the quick tier against claims/verdicts_quick.toml)
+//                        (the test suite runs the quick tier against the committed records)
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
+#include "experiments/claim_index.hpp"
 #include "experiments/evaluate.hpp"
+#include "experiments/provenance.hpp"
+#include "experiments/registry.hpp"
 
 namespace pbdbench::experiments {
 
@@ -23,13 +29,10 @@ struct ReportContext {
   std::string build;    // e.g. "0.1.0 Release, GNU 12.2.0, commit abc123"
   std::string command;  // the command line that made the report
   std::filesystem::path figures_dir;  // relative to the report's folder ("figures")
-  int jobs = 1;                       // runs made at a time (timings share the cores when > 1)
+  int jobs = 1;                       // runs made at a time (timings always run alone)
+  const ClaimIndex* index = nullptr;  // claims: the index (its source and untestable claims)
+  std::map<std::string, RegistrationStatus> registration;  // by experiment id
 };
-
-// The machine this process runs on: the CPU model and the number of cores.
-std::string machine_description();
-// The build: version, build type, compiler, commit.
-std::string build_description();
 
 // The claims' report, or, when the experiments are reproductions, the reproductions' report (a
 // row per published number: published, source, ours, rule, verdict).
@@ -37,12 +40,21 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
 std::string results_json(const std::vector<ClaimResult>& claims, const ReportContext& context,
                          const std::filesystem::path& relative_to);
 
+// The counts of a set of results as one line each, the same words in the console and the report:
+// "73 parts in the article's regime: 32 supported, 31 contradicted, 6 inconclusive, 4 not
+// testable"; "22 claims: ...".
+std::string part_counts_line(const std::vector<ClaimResult>& results);
+std::string experiment_counts_line(const std::vector<ClaimResult>& results);
+
 // Verdict records: one line per part, "S5.4.2" = "contradicted", and one per claim, "S5.4" =
-// "contradicted". Parts marked timing are recorded but not compared.
+// "contradicted". Parts that read timing measures are recorded but not compared.
 std::string verdicts_toml(const std::vector<ClaimResult>& claims, Tier tier);
 // The differences between the claims' verdicts and a record (only for the claims evaluated);
 // empty when they agree. Throws std::runtime_error when the file cannot be read.
 std::vector<std::string> verdict_differences(const std::vector<ClaimResult>& claims,
                                              const std::filesystem::path& record);
+
+// A part's id: "<experiment id>.<k>", k from 1.
+std::string part_id(const ClaimResult& result, size_t k);
 
 }  // namespace pbdbench::experiments

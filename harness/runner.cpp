@@ -1,11 +1,14 @@
 #include "harness/runner.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <memory>
 #include <stdexcept>
 #include <string>
 
+#include "core/cancel.hpp"
+#include "harness/plan.hpp"
 #include "harness/relax.hpp"
 #include "metrics/shadow.hpp"
 #include "solvers/solver.hpp"
@@ -18,6 +21,19 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// The first quantity of a sample that must be finite and is not ("total energy = inf J"), or "".
+// NaN-by-design series (observables a scene does not have) are not looked at.
+std::string non_finite(const Sample& s) {
+  const std::pair<const char*, double> scalars[] = {
+      {"kinetic energy", s.kinetic_energy}, {"potential energy", s.potential_energy},
+      {"elastic energy", s.elastic_energy}, {"total energy", s.total_energy}};
+  for (const auto& [name, v] : scalars)
+    if (!std::isfinite(v)) return std::string(name) + " = " + std::to_string(v) + " J";
+  if (!s.linear_momentum.allFinite()) return "linear momentum not finite";
+  if (!s.angular_momentum.allFinite()) return "angular momentum not finite";
+  return "";
 }
 
 }  // namespace
@@ -73,6 +89,24 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
     relax_start = initial_rest_values(model, state.x);
   }
 
+  // The run as a whole, before anything is written: its initial state must be measurable, and
+  // it must fit the machine.
+  const MetricsBaseline baseline = measure_baseline(model, state);
+  Sample sample = measure(model, state, baseline);
+  if (const std::string bad = non_finite(sample); !bad.empty())
+    throw config::ConfigError(config::Source{config.file.string(), 0}, "scene",
+                              "the initial state cannot be measured: " + bad +
+                                  " (masses, positions, velocities or gravity too large)");
+  const RunPlan plan = plan_run(model, solver_opts, run);
+  if (const std::string problems = plan_problems(plan, out); !problems.empty()) {
+    if (!control.force)
+      throw config::ConfigError(config::Source{config.file.string(), 0}, "",
+                                "the planned run does not fit this machine: " + describe_plan(plan) +
+                                    ": " + problems + " (estimates; --force runs it anyway)");
+    if (control.notice) control.notice("running anyway (--force): " + problems);
+  }
+  if (plan.seconds > 60.0 && control.notice) control.notice("planned: " + describe_plan(plan));
+
   RunOutcome outcome;
   outcome.steps_planned = run.steps();
 
@@ -86,9 +120,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   header.steps_planned = outcome.steps_planned;
   RunFileWriter writer(out, header, model);
 
-  const MetricsBaseline baseline = measure_baseline(model, state);
   const StepReport initial_report;
-  Sample sample = measure(model, state, baseline);
   writer.append({state.time, state.step, 0.0, &sample, &initial_report});
   writer.append_frame(state.time, state.x);
 
@@ -126,7 +158,8 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       }
       writer.append({state.time, state.step, wall, &sample, &report, &shadow_sample});
       outcome.steps_completed = k;
-      const std::string why = explosion_reason(model, state, sample, run.limits, baseline);
+      std::string why = explosion_reason(model, state, sample, run.limits, baseline);
+      if (why.empty()) why = non_finite(sample);
       if (!why.empty()) {
         writer.append_frame(state.time, state.x);
         outcome.status = RunStatus::Exploded;
@@ -140,7 +173,8 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       if (k % run.frame_every == 0 || k == outcome.steps_planned)
         writer.append_frame(state.time, state.x);
       if (control.progress) control.progress(k, outcome.steps_planned);
-      if (control.stop != nullptr && control.stop->load() && k < outcome.steps_planned) {
+      const bool stop = (control.stop != nullptr && control.stop->load()) || cancel_requested();
+      if (stop && k < outcome.steps_planned) {
         writer.append_frame(state.time, state.x);
         outcome.status = RunStatus::Incomplete;
         outcome.reason = "interrupted after step " + std::to_string(k);
@@ -151,6 +185,17 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       }
     }
   } catch (const std::exception& e) {
+    // Interrupted inside a step (core/cancel.hpp): the file keeps the steps before it. Any
+    // failure while a cancellation is pending is the cancellation's doing.
+    if (dynamic_cast<const Cancelled*>(&e) != nullptr || cancel_requested()) {
+      outcome.status = RunStatus::Incomplete;
+      outcome.reason = "interrupted during step " + std::to_string(outcome.steps_completed + 1) +
+                       (dynamic_cast<const Cancelled*>(&e) != nullptr ? std::string(" (") + e.what() + ")" : "");
+      outcome.final_sample = sample;
+      outcome.wall_time = seconds_since(t_start);
+      writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
+      return outcome;
+    }
     outcome.status = RunStatus::Failed;
     outcome.reason = e.what();
     outcome.final_sample = sample;

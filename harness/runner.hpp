@@ -40,12 +40,19 @@ struct RunControl {
   // tests use it to run deliberately broken variants that are never shipped.
   std::function<std::unique_ptr<Solver>(const SolverOptions&, const Model&)> make_solver;
   // When set and true, the run stops after the current step and is recorded as incomplete.
+  // A cancellation (core/cancel.hpp) stops it within the step.
   const std::atomic<bool>* stop = nullptr;
+  // Run even when the plan does not fit the machine (harness/plan.hpp).
+  bool force = false;
+  // Told the plan of a run expected to take more than a minute, before it starts; may be empty.
+  std::function<void(const std::string&)> notice;
 };
 
 // Runs `config` and writes `out` (its directory is created). Throws config::ConfigError when the
-// scene cannot be built (before any file is written) and std::runtime_error when the file cannot
-// be written; everything that goes wrong after the file exists is recorded in it.
+// scene cannot be built or the planned run does not fit the machine (before any file is
+// written), OutputRefused (runfile/output_guard.hpp) when `out` may not be written or another
+// process is writing it, and std::runtime_error when the file cannot be written; everything that
+// goes wrong after the file exists is recorded in it.
 RunOutcome run_config(const config::Config& config, const std::filesystem::path& out,
                       const RunControl& control = {});
 

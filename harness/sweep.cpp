@@ -1,11 +1,15 @@
 #include "harness/sweep.hpp"
 
 #include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <charconv>
 #include <cmath>
@@ -17,7 +21,10 @@
 
 #include "config/toml_text.hpp"
 #include "runfile/build_info.hpp"
+#include "core/cancel.hpp"
+#include "runfile/output_guard.hpp"
 #include "runfile/run_file.hpp"
+#include "solvers/options.hpp"
 
 extern char** environ;
 
@@ -130,6 +137,7 @@ std::string status_from_exit(int wstatus) {
     switch (WEXITSTATUS(wstatus)) {
       case 0: return "complete";
       case 3: return "exploded";
+      case 2: return "refused";
       case 4: return "incomplete";
       default: return "failed";
     }
@@ -137,14 +145,62 @@ std::string status_from_exit(int wstatus) {
   return "failed";
 }
 
+// A child runs `argv` with stdout and stderr to `log_path`, and dies with the thread that
+// started it (PR_SET_PDEATHSIG: SIGTERM, so that it still records itself as interrupted): a
+// killed sweep leaves no run going on without it. Only async-signal-safe calls after fork().
+pid_t spawn_child(const std::vector<char*>& argv, char* const* envp, const std::string& log_path) {
+  const pid_t parent = ::getpid();
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error(std::string("cannot start a run: fork failed: ") + std::strerror(errno));
+  if (pid == 0) {
+    if (::prctl(PR_SET_PDEATHSIG, SIGTERM) != 0 || ::getppid() != parent) _exit(127);
+    // The parent's handlers and mask are not the child's business: it installs its own.
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    ::sigaction(SIGINT, &dfl, nullptr);
+    ::sigaction(SIGTERM, &dfl, nullptr);
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
+    const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0 || ::dup2(fd, STDOUT_FILENO) < 0 || ::dup2(fd, STDERR_FILENO) < 0) _exit(127);
+    ::execve(argv[0], argv.data(), envp);
+    _exit(127);
+  }
+  return pid;
+}
+
 }  // namespace
 
-void run_children(const fs::path& executable, const std::vector<ChildRun>& runs, int jobs,
+bool run_children(const fs::path& executable, const std::vector<ChildRun>& runs, int jobs,
                   const std::function<void(size_t, const std::string&, const std::string&)>& on_done) {
   std::map<pid_t, size_t> running;
   size_t next = 0, done = 0;
+  // The children's environment: this one, with each child's share of the cores,
+  // max(1, cores / jobs), so that `jobs` runs at once do not each start a thread per core:
+  // PBDBENCH_CORES (read by available_cores(): what solver.threads = 0 gives pbd and xpbd), and,
+  // unless this environment sets it, OMP_THREAD_LIMIT, the only bound on the OpenMP threads of
+  // Debian's CHOLMOD (built with a fixed num_threads(4)), read when a process starts.
+  std::vector<std::string> env_text;
+  const std::string share_prefix = std::string(kCoresVariable) + "=";
+  const std::string share = std::to_string(std::max(1, available_cores() / std::max(jobs, 1)));
+  for (char** e = environ; *e != nullptr; ++e)
+    if (std::string(*e).rfind(share_prefix, 0) != 0) env_text.emplace_back(*e);
+  env_text.push_back(share_prefix + share);
+  if (std::getenv("OMP_THREAD_LIMIT") == nullptr) env_text.push_back("OMP_THREAD_LIMIT=" + share);
+  std::vector<char*> envp;
+  for (std::string& e : env_text) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  bool stopping = false;
   auto launch = [&](size_t k) {
     const ChildRun& r = runs[k];
+    // A run whose writer is alive (a process left by an earlier sweep, another sweep) is not
+    // started a second time.
+    if (const auto holder = output_holder(r.file)) {
+      ++done;
+      on_done(k, "busy", "    " + r.file.string() + " is being written by " + *holder + "\n");
+      return;
+    }
     std::vector<std::string> args = {executable.string(), "run", r.scenario};
     for (const auto& o : r.overrides) {
       args.push_back("--set");
@@ -158,21 +214,27 @@ void run_children(const fs::path& executable, const std::vector<ChildRun>& runs,
     argv.push_back(nullptr);
     fs::create_directories(r.file.parent_path());
     const std::string log_path = fs::path(r.file).replace_extension(".log").string();
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-    pid_t pid = 0;
-    const int rc = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (rc != 0) throw std::runtime_error("cannot start " + executable.string() + ": " + std::strerror(rc));
-    running[pid] = k;
+    running[spawn_child(argv, envp.data(), log_path)] = k;
   };
   while (done < runs.size()) {
-    while (running.size() < static_cast<size_t>(std::max(jobs, 1)) && next < runs.size()) launch(next++);
+    if (!stopping && cancel_requested()) {
+      // Interrupted: launch nothing more, and ask the running children to stop (each records
+      // its run as interrupted).
+      stopping = true;
+      for (const auto& [pid, k] : running) ::kill(pid, SIGTERM);
+    }
+    while (!stopping && running.size() < static_cast<size_t>(std::max(jobs, 1)) && next < runs.size())
+      launch(next++);
+    if (running.empty()) break;  // stopping, or the last runs were busy
+    // Polled, so that a signal that comes between the check above and the wait is seen within
+    // 20 ms (a blocking wait would sleep until a child ends).
     int wstatus = 0;
-    const pid_t pid = waitpid(-1, &wstatus, 0);
-    if (pid < 0) throw std::runtime_error("waitpid failed");
+    const pid_t pid = waitpid(-1, &wstatus, WNOHANG);
+    if (pid == 0 || (pid < 0 && errno == EINTR)) {
+      ::usleep(20000);
+      continue;
+    }
+    if (pid < 0) throw std::runtime_error(std::string("waitpid failed: ") + std::strerror(errno));
     auto it = running.find(pid);
     if (it == running.end()) continue;
     const size_t k = it->second;
@@ -181,15 +243,17 @@ void run_children(const fs::path& executable, const std::vector<ChildRun>& runs,
     const std::string status = status_from_exit(wstatus);
     std::string message;
     const fs::path log_path = fs::path(runs[k].file).replace_extension(".log");
-    if (status == "failed" || status == "incomplete") message = tail_of(log_path, 8);
+    if (status != "complete" && status != "exploded") message = tail_of(log_path, 8);
     on_done(k, status, message);
   }
+  return !stopping;
 }
 
 bool SweepResult::ok() const {
-  return std::none_of(runs.begin(), runs.end(), [](const SweepRunResult& r) {
-    return r.status == "failed" || r.status == "refused" || r.status == "incomplete";
-  });
+  return unfinished.empty() && std::none_of(runs.begin(), runs.end(), [](const SweepRunResult& r) {
+           return r.status == "failed" || r.status == "refused" || r.status == "incomplete" || r.status == "busy" ||
+                  r.status == "pending";
+         });
 }
 
 SweepSpec load_sweep(const fs::path& path) {
@@ -340,6 +404,24 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
       pending.push_back(k);
     }
   }
+  if (options.merge_shards > 0) {
+    // The merge makes no run: what is not current is unfinished, named with its shard.
+    for (size_t k : pending) {  // (with --force every run is pending: the current ones are fine)
+      SweepRunResult& r = result.runs[k];
+      r.status = run_state(r.file, configs[k]);
+      if (r.status == "current") {
+        r.skipped = true;
+        r.status = read_run_file(r.file, false).status();
+        continue;
+      }
+      result.unfinished.push_back({static_cast<int>(indices[k] % static_cast<size_t>(options.merge_shards)),
+                                   spec.runs[indices[k]].stem, r.file, r.status});
+    }
+    log << "sweep " << spec.name << ": merge of " << options.merge_shards << " shards: " << indices.size()
+        << " runs, " << result.unfinished.size() << " not finished -> " << options.out_dir.string() << "\n";
+    if (result.unfinished.empty()) write_index(spec, options, indices, result.runs);
+    return result;
+  }
   const size_t skipped = indices.size() - pending.size();
   log << "sweep " << spec.name << ": " << indices.size() << " runs";
   if (options.shard_count > 1) log << " (shard " << options.shard_index << " of " << options.shard_count << ")";
@@ -349,19 +431,22 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
   std::vector<ChildRun> children;
   for (size_t k : pending) children.push_back({spec.scenario, overrides[k], result.runs[k].file});
   size_t done = 0;
-  run_children(options.executable, children, options.jobs,
+  result.interrupted = !run_children(options.executable, children, options.jobs,
                [&](size_t c, const std::string& status, const std::string& message) {
                  const size_t k = pending[c];
                  ++done;
                  SweepRunResult& r = result.runs[k];
                  r.status = status;
                  r.message = message;
-                 if (options.progress || r.status == "failed")
+                 if (options.progress || r.status == "failed" || r.status == "busy" || r.status == "refused")
                    log << "  [" << done << "/" << pending.size() << "] " << spec.runs[indices[k]].stem
                        << ": " << r.status << "\n"
                        << r.message;
                  write_index(spec, options, indices, result.runs);
                });
+  if (result.interrupted)
+    log << "sweep " << spec.name << ": interrupted; " << std::count_if(result.runs.begin(), result.runs.end(), [](const SweepRunResult& r) { return r.status == "pending"; })
+        << " runs not started (run the sweep again to resume)\n";
   write_index(spec, options, indices, result.runs);
   return result;
 }

@@ -13,7 +13,8 @@
 //   "solver.substeps" = 1
 //
 // Keys may be quoted dotted paths ("solver.iterations") or nested tables ([set.solver]).
-// Each run writes <out>/<parameters>.h5 and a log beside it; <out>/index.json lists them all.
+// Each run writes <out>/<parameters>.h5 and a log beside it; <out>/index.json lists them all
+// (a shard: <out>/index.shard-I-of-N.json).
 #pragma once
 
 #include <filesystem>
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "config/config.hpp"
+#include "harness/shards.hpp"
 
 namespace pbdbench {
 
@@ -49,7 +51,10 @@ struct SweepOptions {
   int jobs = 1;                      // runs at once (child processes)
   bool force = false;                // rerun runs that are already complete
   int shard_index = 0;               // run only the runs with index % shard_count == shard_index
-  int shard_count = 1;
+  int shard_count = 1;               // (harness/shards.hpp: one run a unit, dealt in turn)
+  int merge_shards = 0;              // > 0: the merge of this many shards: run nothing; the runs
+                                     // not current are SweepResult::unfinished, and index.json is
+                                     // written only when there are none
   std::vector<config::Override> extra;  // --set overrides applied after the sweep's own
   std::filesystem::path executable;  // the pbdbench binary that runs each child
   bool progress = false;             // print a line per finished run
@@ -57,14 +62,17 @@ struct SweepOptions {
 
 struct SweepRunResult {
   std::filesystem::path file;
-  std::string status;  // complete, exploded, failed, incomplete, refused
+  std::string status;  // complete, exploded, failed, incomplete, refused, busy (another process is
+                       // writing the file), pending (not started: the sweep was interrupted)
   bool skipped = false;  // already complete with the same configuration and build
   std::string message;   // the failure or refusal, when any
 };
 
 struct SweepResult {
   std::vector<SweepRunResult> runs;  // one per run of this shard, in the sweep's order
-  bool ok() const;                   // no run failed or was refused
+  std::vector<UnfinishedRun> unfinished;  // a merge: the runs not finished, by shard
+  bool interrupted = false;          // a cancellation (core/cancel.hpp) stopped it
+  bool ok() const;                   // every run complete or exploded, nothing unfinished
 };
 
 // Validates every run's configuration first (nothing starts if one is refused: the error names
@@ -74,14 +82,18 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
 
 // Runs in child processes, `executable run SCENARIO --set ... --out FILE --quiet`, `jobs` at a
 // time, each child's output in FILE with the extension .log. on_done(index, status, message) is
-// called as each ends: status complete, exploded, failed or incomplete (from the exit code), and
-// the tail of the log as the message of a failed or incomplete run.
+// called as each ends: status complete, exploded, refused, failed or incomplete (from the exit
+// code), or busy without starting it when another process holds the file's lock; the tail of
+// the log as the message of a run neither complete nor exploded. Each child dies with the
+// calling thread (SIGTERM). A cancellation (core/cancel.hpp) stops the launching, sends SIGTERM
+// to the running children and waits for them; the function then returns false (runs not
+// started get no call).
 struct ChildRun {
   std::string scenario;                      // a file or a catalog name
   std::vector<config::Override> overrides;
   std::filesystem::path file;                // the run file to write (its folder is created)
 };
-void run_children(const std::filesystem::path& executable, const std::vector<ChildRun>& runs, int jobs,
+bool run_children(const std::filesystem::path& executable, const std::vector<ChildRun>& runs, int jobs,
                   const std::function<void(size_t, const std::string&, const std::string&)>& on_done);
 
 // True when `file` holds a finished run (complete or exploded) of exactly this configuration

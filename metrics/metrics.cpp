@@ -257,8 +257,8 @@ Vec3 support_force(const Model& model, const State& state) {
   const Vec3 nan = Vec3::Constant(kNaN);
   auto support = [&](int i) { return model.inv_mass[static_cast<size_t>(i)] == 0.0; };
   for (const FemElement& e : model.elements)
-    for (int i : e.particles)
-      if (support(i)) return nan;  // its forces are not in lambda
+    for (int k = 0; k < e.vertices; ++k)
+      if (support(e.particles[static_cast<size_t>(k)])) return nan;  // its forces are not in lambda
   if (state.lambda.size() != model.constraints.size()) return nan;
   bool any_support = false;
   for (int i = 0; i < model.particle_count(); ++i) any_support = any_support || support(i);

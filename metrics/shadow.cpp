@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/constraint_functions.hpp"
+#include "metrics/metrics.hpp"
 
 namespace pbdbench {
 
@@ -31,6 +32,9 @@ ShadowSample measure_shadow(const Model& model, const State& run, const State& s
     if (std::isnan(error)) break;
   }
   s.error_max = error;
+  const Vec3 f = support_force(model, run), f_star = support_force(model, shadow);
+  const double denominator = f_star.norm();
+  if (f.allFinite() && f_star.allFinite() && denominator > 0.0) s.force_error = (f - f_star).norm() / denominator;
   return s;
 }
 

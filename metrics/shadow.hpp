@@ -17,6 +17,10 @@ struct ShadowSample {
   double gap_rms = kNaN;          // m: gap / sqrt(total dynamic mass), the mass-weighted RMS
   double gap_max = kNaN;          // m: max_i |x_run,i - x*_i|
   double error_max = kNaN;        // the shadow's constraint_error_max (metrics/metrics.hpp)
+  double force_error = kNaN;      // |F - F*| / |F*| of the support force (metrics/metrics.hpp,
+                                  // support_force) of the run's step against the shadow's: how
+                                  // far the multipliers are from the converged step's forces;
+                                  // NaN when the scene has no support force or |F*| = 0
   double residual_g = kNaN;       // the shadow's |g|_2, kg m
   double residual_h = kNaN;       // the shadow's |h|_2, units of C
   double residual_position = kNaN;  // the shadow's KKT residual in position units, m
@@ -25,8 +29,8 @@ struct ShadowSample {
   double cost_ratio = kNaN;       // shadow time / the run's step time
 };
 
-// gap, gap_rms, gap_max and error_max of `run` against `shadow` (same model). The report fields
-// (residuals, iterations, times) are the caller's to fill.
+// gap, gap_rms, gap_max, error_max and force_error of `run` against `shadow` (same model). The
+// report fields (residuals, iterations, times) are the caller's to fill.
 ShadowSample measure_shadow(const Model& model, const State& run, const State& shadow);
 
 }  // namespace pbdbench

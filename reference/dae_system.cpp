@@ -34,6 +34,7 @@
 #include <ida/ida_ls.h>
 #include <sunmatrix/sunmatrix_sparse.h>
 
+#include "core/cancel.hpp"
 #include "reference/sundials_support.hpp"
 
 namespace pbdbench {
@@ -362,6 +363,7 @@ namespace {
 extern "C" int dae_residual(sunrealtype t, N_Vector y, N_Vector yp, N_Vector r, void* data) {
   auto* impl = static_cast<DaeIntegrator::Impl*>(data);
   try {
+    throw_if_cancelled("an IDA step");
     return impl->residual(t, N_VGetArrayPointer(y), N_VGetArrayPointer(yp), N_VGetArrayPointer(r));
   } catch (const std::exception& e) {
     impl->log.last = std::string("residual: ") + e.what();

@@ -317,6 +317,9 @@ EnergyModel::EnergyModel(const Model& model) : model_(&model) {
     if (is_fem_kind(c.kind)) {
       if (c.element < 0 || c.element >= static_cast<int>(model.elements.size()))
         throw std::invalid_argument(name + ": element " + std::to_string(c.element) + " is out of range");
+      if (c.damping > 0.0 && is_strain_kind(c.kind))
+        throw std::invalid_argument(name + ": damping " + num(c.damping) +
+                                    " on a strain-vector constraint is not supported");
       if (c.damping > 0.0) damped_fem.push_back(j);
     } else if (c.compliance == 0.0) {
       rigid_.push_back(j);
@@ -331,8 +334,8 @@ EnergyModel::EnergyModel(const Model& model) : model_(&model) {
   for (size_t k = 0; k < model.elements.size(); ++k) {
     const FemElement& e = model.elements[k];
     const std::string name = "element " + std::to_string(k);
-    for (int p : e.particles)
-      if (p < 0 || p >= n)
+    for (int i = 0; i < e.vertices; ++i)
+      if (const int p = e.particles[static_cast<size_t>(i)]; p < 0 || p >= n)
         throw std::invalid_argument(name + ": particle " + std::to_string(p) + " is out of range");
     if (!(e.rest_volume > 0.0) || !std::isfinite(e.rest_volume))
       throw std::invalid_argument(name + ": rest volume " + num(e.rest_volume) + " is not > 0");
@@ -356,6 +359,8 @@ EnergyModel::EnergyModel(const Model& model) : model_(&model) {
   const size_t terms = compliant_.size() + model.elements.size() + damped_fem.size();
   std::vector<const int*> stencil(terms);
   std::vector<int> stencil_size(terms);
+  // A triangle element's fourth stencil entry is -1: no particle, no dof.
+  auto dof_of = [&](int p) { return p < 0 ? -1 : particle_dof_[static_cast<size_t>(p)]; };
   {
     size_t t = 0;
     for (int j : compliant_) {
@@ -379,10 +384,10 @@ EnergyModel::EnergyModel(const Model& model) : model_(&model) {
   for (int k = 0; k < blocks; ++k) block_start[static_cast<size_t>(k) + 1] = 1;
   for (size_t t = 0; t < terms; ++t)
     for (int j = 0; j < stencil_size[t]; ++j) {
-      const int dj = particle_dof_[static_cast<size_t>(stencil[t][j])];
+      const int dj = dof_of(stencil[t][j]);
       if (dj < 0) continue;
       for (int i = 0; i < stencil_size[t]; ++i)
-        if (particle_dof_[static_cast<size_t>(stencil[t][i])] >= 0) ++block_start[static_cast<size_t>(dj) + 1];
+        if (dof_of(stencil[t][i]) >= 0) ++block_start[static_cast<size_t>(dj) + 1];
     }
   for (int k = 0; k < blocks; ++k) block_start[static_cast<size_t>(k) + 1] += block_start[static_cast<size_t>(k)];
   std::vector<int> block_row(static_cast<size_t>(block_start.back()));
@@ -391,10 +396,10 @@ EnergyModel::EnergyModel(const Model& model) : model_(&model) {
     for (int k = 0; k < blocks; ++k) block_row[static_cast<size_t>(fill[static_cast<size_t>(k)]++)] = k;
     for (size_t t = 0; t < terms; ++t)
       for (int j = 0; j < stencil_size[t]; ++j) {
-        const int dj = particle_dof_[static_cast<size_t>(stencil[t][j])];
+        const int dj = dof_of(stencil[t][j]);
         if (dj < 0) continue;
         for (int i = 0; i < stencil_size[t]; ++i) {
-          const int di = particle_dof_[static_cast<size_t>(stencil[t][i])];
+          const int di = dof_of(stencil[t][i]);
           if (di >= 0) block_row[static_cast<size_t>(fill[static_cast<size_t>(dj)]++)] = di;
         }
       }
@@ -438,12 +443,12 @@ EnergyModel::EnergyModel(const Model& model) : model_(&model) {
   for (size_t t = 0; t < terms; ++t) {
     const int K = stencil_size[t];
     for (int j = 0; j < K; ++j) {
-      const int dj = particle_dof_[static_cast<size_t>(stencil[t][j])];
+      const int dj = dof_of(stencil[t][j]);
       if (dj < 0) continue;
       const auto begin = block_row.begin() + block_start[static_cast<size_t>(dj)];
       const auto end = block_row.begin() + block_start[static_cast<size_t>(dj) + 1];
       for (int i = 0; i < K; ++i) {
-        const int di = particle_dof_[static_cast<size_t>(stencil[t][i])];
+        const int di = dof_of(stencil[t][i]);
         if (di < 0) continue;
         const std::int64_t m = std::lower_bound(begin, end, di) - begin;
         slots_[static_cast<size_t>(slot_start_[t] + i + K * j)] =
@@ -536,7 +541,7 @@ void EnergyModel::gradient(const Points& x, Eigen::VectorXd& g) const {
   }
   for (const FemElement& e : model.elements) {
     const Vec12 ge = fem::element_gradient(e, x);
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < e.vertices; ++i) {
       const int d = particle_dof_[static_cast<size_t>(e.particles[static_cast<size_t>(i)])];
       if (d >= 0) g.segment<3>(3 * d) += ge.segment<3>(3 * i);
     }
@@ -597,12 +602,15 @@ void EnergyModel::visit_hessian_terms(const Points& x, bool project, Visit&& vis
       }
       case ConstraintKind::FemDeviatoric:
       case ConstraintKind::FemHydrostatic:
+      case ConstraintKind::FemStrainTriangle:
+      case ConstraintKind::FemStrainTet:
         break;  // never in compliant_
     }
   }
   for (const FemElement& e : model.elements) {
     const std::int64_t* slots = slots_.data() + slot_start_[t++];
-    for (int i = 0; i < 4; ++i) dof[i] = particle_dof_[static_cast<size_t>(e.particles[static_cast<size_t>(i)])];
+    for (int i = 0; i < 4; ++i)
+      dof[i] = i < e.vertices ? particle_dof_[static_cast<size_t>(e.particles[static_cast<size_t>(i)])] : -1;
     const Mat12 H = fem::element_hessian(e, x, project);
     visit(H, slots, dof);
   }

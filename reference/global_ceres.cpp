@@ -36,6 +36,8 @@
 // away). x and lambda are then the last iterate, unconverged.
 #include "reference/global_ceres.hpp"
 
+#include "core/cancel.hpp"
+
 #include <ceres/ceres.h>
 
 #include <algorithm>
@@ -297,6 +299,7 @@ class CeresSolve final : public ceres::IterationCallback {
   // the trust region has been shrunk kMaxRejections times in a row (the cost can no longer tell
   // the candidate steps apart; the best point is kept).
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    if (cancel_requested()) return ceres::SOLVER_ABORT;  // Solve() returns; the caller throws
     if (summary.iteration == 0) {
       rejections_ = 0;
       return ceres::SOLVER_CONTINUE;
@@ -351,6 +354,13 @@ GlobalResult solve_global_ceres(const GlobalProblem& problem, const SolverOption
                                 std::to_string(problem.rows().size()) + " rows");
   if (!(options.global_regularization > 0.0))
     throw std::invalid_argument("global-ceres: solver.global.regularization must be > 0");
+  for (const int j : problem.compliant())
+    if (is_strain_kind(model.constraints[static_cast<size_t>(j)].kind))
+      throw std::invalid_argument(
+          "global-ceres cannot solve " + std::string(to_string(model.constraints[static_cast<size_t>(j)].kind)) +
+          " constraint " + std::to_string(j) +
+          " (a strain vector of a stvk or linear element): its least-squares costs are scalar; "
+          "use global-cholmod or global-cg");
   const ceres::TrustRegionStrategyType strategy = strategy_of(options.global_ceres_method);
   if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE))
     throw std::runtime_error("global-ceres: this Ceres has no SuiteSparse");
@@ -444,6 +454,7 @@ GlobalResult solve_global_ceres(const GlobalProblem& problem, const SolverOption
   for (int round = 1; round <= max_rounds; ++round) {
     ceres::Solver::Summary summary;
     ceres::Solve(so, &least_squares, &summary);
+    throw_if_cancelled("a Levenberg-Marquardt iteration");
     result.iterations = round;
     // SPARSE_NORMAL_CHOLESKY factorises J^T J + mu D afresh for every linear solve (the symbolic
     // analysis once per Solve call), so factorisations and linear solves are the same count.

@@ -1,5 +1,7 @@
 #include "reference/global_newton.hpp"
 
+#include "core/cancel.hpp"
+
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <Eigen/IterativeLinearSolvers>
@@ -37,13 +39,26 @@ double row_potential(const GlobalRow& row, double C, double lambda, double eps) 
   return -0.5 * eps * lambda * lambda;
 }
 
-// Projection of a symmetric block onto the positive semi-definite cone (its leading k x k).
+// Projection of a symmetric K x K block onto the positive semi-definite cone, in fixed-size
+// matrices (no heap allocation).
+template <int K>
+void project_psd_fixed(Mat12& H) {
+  using M = Eigen::Matrix<double, K, K>;
+  const M sub = H.template topLeftCorner<K, K>();
+  const Eigen::SelfAdjointEigenSolver<M> eig(sub);
+  H.template topLeftCorner<K, K>() =
+      eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+}
+
+// Projection of a symmetric block onto the positive semi-definite cone (its leading k x k, k = 3
+// times the row's particles).
 void project_psd(Mat12& H, int k) {
-  if (k == 12) {
-    const Eigen::SelfAdjointEigenSolver<Mat12> eig(H);
-    H = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
-        eig.eigenvectors().transpose();
-    return;
+  switch (k) {
+    case 3: project_psd_fixed<3>(H); return;
+    case 6: project_psd_fixed<6>(H); return;
+    case 9: project_psd_fixed<9>(H); return;
+    case 12: project_psd_fixed<12>(H); return;
+    default: break;
   }
   const Eigen::MatrixXd sub = H.topLeftCorner(k, k);
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(sub);
@@ -159,7 +174,12 @@ struct GlobalNewton::Impl {
       dq = cg.solve(b);
       result.inner_iterations += cg.iterations();
       ++result.linear_solves;
-      return cg.info() == Eigen::Success && dq.allFinite();
+      // A solve that used up solver.global.cg_max_iterations is kept (an inexact Newton step:
+      // CG's iterates from 0 are descent directions on an SPD matrix, and the line search below
+      // guards the step), so that a fixed CG budget a step, as Macklin et al. 2019 ran backward
+      // Euler (100 Jacobi-preconditioned iterations), is what runs.
+      const bool budget_spent = cg.info() == Eigen::NoConvergence && cg.iterations() >= cg.maxIterations();
+      return (cg.info() == Eigen::Success || budget_spent) && dq.allFinite();
     };
     if (options.global_cg_preconditioner == "jacobi") {
       Eigen::ConjugateGradient<SpMat, Eigen::Lower | Eigen::Upper, Eigen::DiagonalPreconditioner<double>> cg;
@@ -208,6 +228,7 @@ struct GlobalNewton::Impl {
     ++result.linear_solves;
     if (r.norm() <= stop) return true;
     for (int it = 0; it < options.global_cg_max_iterations; ++it) {
+      if (it % 64 == 0) throw_if_cancelled("a conjugate-gradient iteration");
       apply(p, Ap);
       const double pAp = p.dot(Ap);
       if (!(pAp > 0.0)) return false;
@@ -221,7 +242,7 @@ struct GlobalNewton::Impl {
       p = z + (rz_next / rz) * p;
       rz = rz_next;
     }
-    return false;
+    return dq.allFinite();  // the budget is spent: an inexact Newton step (as assembled above)
   }
 };
 
@@ -269,6 +290,7 @@ GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
   Eigen::VectorXd grad, dq;
   Points x_trial;
   for (int it = 1; it <= o.global_max_iterations; ++it) {
+    throw_if_cancelled("a Newton iteration");
     // The Newton system of L_A for the current multipliers.
     const Clock::time_point t_lin = Clock::now();
     im.row_terms(problem, x, row_lambda, eps, terms);

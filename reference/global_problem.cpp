@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/constraint_functions.hpp"
+#include "core/fem.hpp"
 
 namespace pbdbench {
 
@@ -63,12 +64,12 @@ void pattern_product(const SparsityPattern& p, const std::vector<double>& values
 
 GlobalProblem::GlobalProblem(const Model& model) : model_(&model), energy_(model) {
   for (size_t k = 0; k < model.elements.size(); ++k)
-    if (model.elements[k].material != Material::StableNeoHookean)
+    if (!fem::has_constraint_form(model.elements[k].material))
       throw std::invalid_argument(
           "the global solvers cannot simulate element " + std::to_string(k) + ": its material " +
           to_string(model.elements[k].material) +
-          " has no constraint form (only stable_neo_hookean has, as in xpbd); use a reference "
-          "solver");
+          " has no constraint form (stable_neo_hookean, stvk and linear have, as in xpbd); use a "
+          "reference solver");
   particle_dof_.assign(static_cast<size_t>(model.particle_count()), -1);
   const std::vector<int>& dynamic = energy_.dynamic_particles();
   for (size_t b = 0; b < dynamic.size(); ++b)
@@ -321,9 +322,12 @@ Eigen::VectorXd GlobalProblem::gather(const Points& x) const { return energy_.ga
 void GlobalProblem::constraint_forces(const Points& x, const std::vector<double>& row_lambda,
                                       std::vector<double>& lambda) const {
   lambda.assign(static_cast<size_t>(model_->constraint_count()), 0.0);
-  for (int j : compliant_)
+  for (int j : compliant_) {
+    // A strain kind's multiplier is a vector (core/fem.hpp); its slot stays 0.
+    if (is_strain_kind(model_->constraints[static_cast<size_t>(j)].kind)) continue;
     lambda[static_cast<size_t>(j)] =
         -eval_compliant(j, x).C / model_->constraints[static_cast<size_t>(j)].compliance;
+  }
   for (size_t r = 0; r < rows_.size() && r < row_lambda.size(); ++r)
     if (!rows_[r].inequality)
       lambda[static_cast<size_t>(rows_[r].constraint)] = row_lambda[r] / (h_ * h_);

@@ -12,6 +12,7 @@
 #include <cvode/cvode_ls.h>
 #include <sunmatrix/sunmatrix_sparse.h>
 
+#include "core/cancel.hpp"
 #include "reference/first_order_system.hpp"
 #include "reference/integrators.hpp"
 #include "reference/ref_common.hpp"
@@ -40,6 +41,7 @@ struct BdfIntegrator::Impl {
   static int rhs(sunrealtype t, N_Vector yv, N_Vector ydot, void* data) {
     auto* self = static_cast<Impl*>(data);
     try {
+      throw_if_cancelled("a CVODE step");
       self->fos.rhs(t, N_VGetArrayPointer(yv), N_VGetArrayPointer(ydot));
       // Recoverable: CVODE retries with a smaller step, and stops with CV_REPTD_RHSFUNC_ERR
       // if that does not help.

@@ -11,6 +11,7 @@
 #include <arkode/arkode_butcher_dirk.h>
 #include <sunmatrix/sunmatrix_sparse.h>
 
+#include "core/cancel.hpp"
 #include "reference/first_order_system.hpp"
 #include "reference/integrators.hpp"
 #include "reference/ref_common.hpp"
@@ -117,6 +118,7 @@ struct FixedStepIntegrator::Impl {
   static int rhs(sunrealtype t, N_Vector yv, N_Vector ydot, void* data) {
     auto* self = static_cast<Impl*>(data);
     try {
+      throw_if_cancelled("an ARKODE step");
       self->fos.rhs(t, N_VGetArrayPointer(yv), N_VGetArrayPointer(ydot));
       return sun::cview(ydot).allFinite() ? 0 : 1;  // recoverable: a fixed step still fails
     } catch (...) {

@@ -11,6 +11,7 @@
 #include <kinsol/kinsol_ls.h>
 #include <sunmatrix/sunmatrix_sparse.h>
 
+#include "core/cancel.hpp"
 #include "reference/integrators.hpp"
 #include "reference/ref_common.hpp"
 
@@ -85,6 +86,7 @@ struct StaticSolver::Impl {
   static int residual(N_Vector uv, N_Vector Fv, void* data) {
     auto* self = static_cast<Impl*>(data);
     try {
+      throw_if_cancelled("a KINSOL iteration");
       self->eval_residual(N_VGetArrayPointer(uv), N_VGetArrayPointer(Fv));
       return sun::cview(Fv).allFinite() ? 0 : 1;  // recoverable: KINSOL shortens the step
     } catch (...) {
@@ -196,6 +198,7 @@ struct StaticSolver::Impl {
     const double mu_min = 1e-12 * scale, mu_max = 1e12 * scale, mu_negligible = 1e-6 * scale;
     double mu = 1e-6 * scale;
     for (int it = 0; it < settings.max_newton; ++it) {
+      throw_if_cancelled("a Newton iteration");
       ++totals.newton_iterations;
       eval_residual(q.data(), F.data());
       const double U0 = system.potential(t, q);

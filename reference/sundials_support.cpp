@@ -1,5 +1,7 @@
 #include "reference/sundials_support.hpp"
 
+#include "core/cancel.hpp"
+
 #include <algorithm>
 #include <cstdlib>
 #include <stdexcept>
@@ -319,6 +321,10 @@ int FullNewton::solve(SUNNonlinearSolver s, N_Vector, N_Vector ycor, N_Vector w,
   bool fresh = false;  // the Jacobian in use was evaluated at the current iterate
   double previous = -1.0;  // weighted norm of the previous accepted step
   while (flag == 0) {
+    if (cancel_requested()) {  // called from SUNDIALS: fail the solve, the runner sees why
+      flag = -1;
+      break;
+    }
     if (setup && self->lsetup_ != nullptr) {
       sunbooleantype jcur = SUNFALSE;
       flag = self->lsetup_(jbad ? SUNTRUE : SUNFALSE, &jcur, mem);

@@ -14,6 +14,7 @@
 #include <toml++/toml.h>
 
 #include "experiments/evaluate.hpp"
+#include "config/data_dir.hpp"
 #include "config/toml_text.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
@@ -97,7 +98,7 @@ const MetricSpec* Registry::metric(const std::string& name) const {
   return nullptr;
 }
 
-fs::path registry_file() { return fs::path(PBDBENCH_SOURCE_DIR) / "regress" / "cases.toml"; }
+fs::path registry_file() { return config::data_dir() / "regress" / "cases.toml"; }
 
 Registry load_registry(const fs::path& file) {
   toml::table root;

@@ -63,7 +63,7 @@ struct Registry {
 // Reads and checks regress/cases.toml (unknown keys, unknown metrics or series, configurations
 // the schema refuses): errors name the file, the line and the key (experiments::ExperimentError).
 Registry load_registry(const std::filesystem::path& file);
-std::filesystem::path registry_file();  // <source dir>/regress/cases.toml
+std::filesystem::path registry_file();  // <data dir>/regress/cases.toml (config/data_dir.hpp)
 
 // What one case measured.
 struct CaseResult {

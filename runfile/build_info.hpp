@@ -1,5 +1,6 @@
 // The provenance of this build, recorded in every run file. Generated at build time
-// (cmake/WriteBuildInfo.cmake): the git commit is never stale.
+// (cmake/WriteBuildInfo.cmake): the git commit is never stale. No path of the build machine is
+// recorded: the binary finds its data at run time (config/data_dir.hpp).
 #pragma once
 
 namespace pbdbench {
@@ -10,7 +11,6 @@ struct BuildInfo {
   const char* compiler;    // e.g. "GNU 12.2.0"
   const char* build_type;  // e.g. "Release"
   const char* cxx_flags;   // the flags the sources were compiled with
-  const char* source_dir;  // where the sources were (to find scenarios/ by default)
 };
 
 const BuildInfo& build_info();

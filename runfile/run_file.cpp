@@ -3,21 +3,25 @@
 // Crash safety. The HDF5 library updates a file's metadata (object headers, chunk B-trees, the
 // superblock's end-of-file address) in place, several separate writes per flush, so a process
 // killed during a flush, or after the metadata cache evicted an entry between flushes, can leave a
-// file that no reader opens. The latest file format (superblock version 3, which SWMR writing
-// needs) is worse after a crash: the superblock keeps "open for writing" flags that make every
-// plain (non-SWMR) open fail until an external tool clears them. tests/runfile/kill_test.py
-// measures all of this; results/README.md has the numbers.
+// file that no reader opens or whose series disagree. The latest file format (superblock version
+// 3, which SWMR writing needs) is worse after a crash: the superblock keeps "open for writing"
+// flags that make every plain (non-SWMR) open fail until an external tool clears them.
+// tests/runfile/kill_test.py measures all of this; results/README.md has the numbers.
 //
-// So this writer never lets the library write to the published file. The file is built in
-// memory (the core driver, no backing store, default file format); publishing it flushes the
-// library's caches, copies the complete image, writes it to "<path>.tmp" and renames that over
-// <path>. rename() is atomic: at any moment <path> is either the previous complete image or the
-// new one, both valid files with status "incomplete" until finish() publishes the last one.
-// A side benefit: the writer holds no HDF5 lock on <path>, so readers may open it while the run
-// is still going.
+// So this writer never lets the library write to the published file. The library writes in
+// place into a working copy, "<path>.shadow", through a file driver of our own
+// (runfile/shadow_file.hpp); publishing flushes the library's caches and renames the working
+// copy over <path>, then brings the previous image up to date with the bytes written since and
+// makes it the next working copy. rename() is atomic: at any moment <path> is either the
+// previous complete image or the new one, both valid files with status "incomplete" until
+// finish() publishes the last one. Memory does not grow with the run (rows are buffered up to
+// kMaxPendingRows), and a publish writes what changed, never the whole file. The writer holds
+// an exclusive lock on "<path>.lock" for the run's life (runfile/output_guard.hpp) and no HDF5
+// lock on <path>, so readers may open it while the run is still going.
 #include "runfile/run_file.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <H5Cpp.h>
@@ -32,6 +36,8 @@
 #include <stdexcept>
 
 #include "runfile/build_info.hpp"
+#include "runfile/output_guard.hpp"
+#include "runfile/shadow_file.hpp"
 
 namespace pbdbench {
 
@@ -57,9 +63,11 @@ using Clock = std::chrono::steady_clock;
 constexpr long long kFormatVersion = 1;
 constexpr hsize_t kChunkRows = 256;  // rows per chunk of a series dataset
 constexpr int kGzipLevel = 4;        // frames/positions
-// Publishing copies the whole file; it is spaced so that it takes at most about 1/kPublishShare
-// of the wall time even when the file grows large.
+// Publishing copies what changed since the last publish; it is spaced so that it takes at most
+// about 1/kPublishShare of the wall time.
 constexpr double kPublishShare = 20.0;
+// Rows buffered in memory before they are written into the working copy (not yet published).
+constexpr size_t kMaxPendingRows = 4096;
 
 [[noreturn]] void fail(const std::filesystem::path& path, const std::string& what) {
   throw std::runtime_error("run file " + path.string() + ": " + what);
@@ -216,6 +224,14 @@ void write_model(H5::H5File& file, const Model& model) {
   set_attr(g, "group_names", model.group_names);
 }
 
+// Rows are appended, never read back: a dataset's chunk cache needs to hold the chunk being
+// filled, not the default 1 MiB (which, per dataset, made memory grow over the first 10^5 rows).
+H5::DSetAccPropList small_chunk_cache(size_t chunk_bytes) {
+  H5::DSetAccPropList dapl;
+  dapl.setChunkCache(101, 2 * chunk_bytes, 1.0);
+  return dapl;
+}
+
 // An extendible dataset of doubles, (rows,) or (rows, width), with the rows not yet written.
 struct Series {
   H5::DataSet dataset;
@@ -234,8 +250,8 @@ Series create_series(H5::Group& group, const std::string& name, int width, std::
   props.setChunk(rank, chunk);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   props.setFillValue(H5::PredType::NATIVE_DOUBLE, &nan);
-  Series s{group.createDataSet(name, H5::PredType::IEEE_F64LE,
-                               H5::DataSpace(rank, dims, maxdims), props),
+  Series s{group.createDataSet(name, H5::PredType::IEEE_F64LE, H5::DataSpace(rank, dims, maxdims), props,
+                               small_chunk_cache(kChunkRows * static_cast<size_t>(width) * sizeof(double))),
            width, 0, {}};
   set_attr(s.dataset, "units", std::string(units));
   set_attr(s.dataset, "doc", std::string(doc));
@@ -265,48 +281,6 @@ void append_rows(H5::DataSet& ds, hsize_t& rows, hsize_t count,
 }
 
 // Writes all of `data` to a new file `tmp`, then renames it over `path`.
-void replace_file(const std::filesystem::path& path, const std::vector<char>& data, bool durable) {
-  const std::string tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) fail(path, "cannot create " + tmp + ": " + std::strerror(errno));
-  size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t w = ::write(fd, data.data() + done, data.size() - done);
-    if (w < 0 && errno == EINTR) continue;
-    if (w <= 0) {
-      const int err = w < 0 ? errno : ENOSPC;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      fail(path, "cannot write " + tmp + ": " + std::strerror(err));
-    }
-    done += static_cast<size_t>(w);
-  }
-  if (durable && ::fsync(fd) != 0) {
-    const int err = errno;
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    fail(path, "cannot sync " + tmp + ": " + std::strerror(err));
-  }
-  if (::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    fail(path, "cannot close " + tmp + ": " + std::strerror(err));
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    fail(path, "cannot rename " + tmp + " to it: " + std::strerror(err));
-  }
-  if (durable) {  // the rename itself: sync the directory
-    const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
-    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dfd >= 0) {
-      ::fsync(dfd);
-      ::close(dfd);
-    }
-  }
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -331,7 +305,8 @@ struct RunFileWriter::Impl {
   Clock::time_point started = Clock::now();
   Clock::time_point last_publish = Clock::now();
   double last_publish_cost = 0.0;  // s
-  std::vector<char> image;         // reused between publications
+  std::optional<OutputLock> lock;  // one writer per path, for the writer's life
+  bool broken = false;             // a publish failed half-way: the working copy is gone
 
   void write_pending() {
     if (pending_rows == 0) return;
@@ -348,19 +323,20 @@ struct RunFileWriter::Impl {
 
   double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
 
-  // Writes the buffered rows, flushes the library and replaces the file on disk with the image.
+  // Writes the buffered rows, flushes the library and publishes the working copy at `path`.
   void publish(bool durable) {
+    if (broken) fail(path, "an earlier publish failed: the file stays as it was then");
     const Clock::time_point t0 = Clock::now();
     write_pending();
     set_attr(*file, "steps_completed", static_cast<long long>(last_step));
     if (!durable) set_attr(*file, "wall_time", elapsed());
     file->flush(H5F_SCOPE_GLOBAL);
-    const ssize_t size = H5Fget_file_image(file->getId(), nullptr, 0);
-    if (size <= 0) fail(path, "cannot get the file image from the HDF5 library");
-    image.resize(static_cast<size_t>(size));
-    if (H5Fget_file_image(file->getId(), image.data(), image.size()) != size)
-      fail(path, "cannot copy the file image from the HDF5 library");
-    replace_file(path, image, durable);
+    try {
+      shadow_publish(file->getId(), path, durable);
+    } catch (...) {
+      broken = true;
+      throw;
+    }
     dirty = false;
     last_publish = Clock::now();
     last_publish_cost = std::chrono::duration<double>(last_publish - t0).count();
@@ -371,12 +347,20 @@ struct RunFileWriter::Impl {
     if (since >= std::max(flush_every, kPublishShare * last_publish_cost)) publish(false);
   }
 
+  // Closes the library's file and removes the working copy; the lock goes last.
   void close() {
+    closed = true;
     series.clear();
     frame_time.reset();
     frame_positions.reset();
-    file.reset();
-    closed = true;
+    try {
+      file.reset();
+    } catch (...) {
+      // The published file is what counts; the working copy is removed below.
+    }
+    std::error_code ec;
+    std::filesystem::remove(shadow_path(path), ec);
+    lock.reset();
   }
 };
 
@@ -390,16 +374,36 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
   w.groups = model.group_names.size();
   H5::Exception::dontPrint();
 
-  // A file left at this path by an earlier run must not survive under this run's name.
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory");
-  std::filesystem::remove(path, ec);
-  if (ec) fail(path, "cannot remove the existing file: " + ec.message());
+  // One writer per path; only a run file may be replaced (checked under the lock).
+  w.lock.emplace(path);
+  check_output_path(path, header.scenario_file);
+  const std::filesystem::path shadow = shadow_path(path);
+  for (const std::filesystem::path& leftover : {shadow, std::filesystem::path(path.string() + ".previous")}) {
+    // A killed writer's working copy: ours to remove, but only if it is a plain file.
+    struct stat st {};
+    if (::lstat(leftover.c_str(), &st) != 0) continue;
+    if (!S_ISREG(st.st_mode))
+      throw OutputRefused("--out " + path.string() + ": " + leftover.string() +
+                          " is in the way and is not a regular file: nothing was written");
+    ::unlink(leftover.c_str());
+  }
 
   try {
     H5::FileAccPropList fapl;
-    fapl.setCore(1 << 20, false);  // in memory only; publish() writes the image
-    w.file.emplace(path.string(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, fapl);
+    if (H5Pset_driver(fapl.getId(), shadow_driver(), nullptr) < 0)
+      fail(path, "cannot select the run file's HDF5 driver");
+    // The metadata cache: the chunk indexes grow with the run; 4 MiB holds what a flush touches
+    // (the default lets the cache grow to 32 MiB).
+    H5AC_cache_config_t mdc;
+    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+    if (H5Pget_mdc_config(fapl.getId(), &mdc) >= 0) {
+      mdc.set_initial_size = true;
+      mdc.initial_size = 1 << 20;
+      mdc.min_size = 1 << 20;
+      mdc.max_size = 4 << 20;
+      H5Pset_mdc_config(fapl.getId(), &mdc);
+    }
+    w.file.emplace(shadow.string(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, fapl);
     H5::H5File& file = *w.file;
 
     // Root attributes.
@@ -453,7 +457,8 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
       H5::DSetCreatPropList props;
       props.setChunk(1, chunk);
       w.frame_time.emplace(frames.createDataSet("time", H5::PredType::IEEE_F64LE,
-                                                H5::DataSpace(1, dims, maxdims), props));
+                                                H5::DataSpace(1, dims, maxdims), props,
+                                                small_chunk_cache(kChunkRows * sizeof(double))));
       set_attr(*w.frame_time, "units", "s");
       set_attr(*w.frame_time, "doc", "simulated time of each frame");
     }
@@ -467,7 +472,8 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
       props.setShuffle();
       props.setDeflate(kGzipLevel);
       w.frame_positions.emplace(frames.createDataSet("positions", H5::PredType::IEEE_F64LE,
-                                                     H5::DataSpace(3, dims, maxdims), props));
+                                                     H5::DataSpace(3, dims, maxdims), props,
+                                                     small_chunk_cache(static_cast<size_t>(chunk[1]) * 3 * sizeof(double))));
       set_attr(*w.frame_positions, "units", "m");
       set_attr(*w.frame_positions, "doc", "particle positions of each frame, (frames, n, 3)");
     }
@@ -522,6 +528,7 @@ void RunFileWriter::append(const SeriesRow& row) {
   w.last_step = row.step;
   w.dirty = true;
   try {
+    if (w.pending_rows >= kMaxPendingRows) w.write_pending();  // into the working copy
     w.maybe_publish();
   } catch (const H5::Exception& e) {
     fail(w.path, "cannot write series: " + h5_message(e));

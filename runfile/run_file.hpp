@@ -15,10 +15,13 @@
 //                      attribute group_names
 //
 // The writer flushes as it goes: when a row or a frame arrives at least `flush_every_seconds` of
-// wall time after the last flush (an interval stretched so that flushing, which rewrites the whole
-// file, takes at most about 5 % of the wall time), at flush() and at finish(). A run killed at any
-// moment leaves a file that h5py opens, with status "incomplete" and every series and frame up to
-// the last flush (run_file.cpp says how; results/README.md has the measurements).
+// wall time after the last flush (an interval stretched so that flushing takes at most about 5 %
+// of the wall time), at flush() and at finish(). A run killed at any moment leaves a file that
+// h5py opens, with status "incomplete" and every series and frame up to the last flush; memory
+// does not grow with the run, and a flush writes what changed since the last one, not the whole
+// file (run_file.cpp and runfile/shadow_file.hpp say how; results/README.md has the
+// measurements). One writer per path: the writer holds "<path>.lock" for its life
+// (runfile/output_guard.hpp).
 #pragma once
 
 #include <filesystem>
@@ -46,8 +49,11 @@ struct RunHeader {
 
 class RunFileWriter {
  public:
-  // Creates (or truncates) the file, writes the header, the build's provenance and the model,
-  // sets status "incomplete" and flushes. Throws std::runtime_error naming the path on failure.
+  // Locks the path, creates the file (replacing a run file left there, and only a run file),
+  // writes the header, the build's provenance and the model, sets status "incomplete" and
+  // flushes. Throws OutputRefused (runfile/output_guard.hpp) when the path holds anything but a
+  // run file, is the scenario file (header.scenario_file), or another writer holds it, and
+  // std::runtime_error naming the path on any other failure.
   RunFileWriter(const std::filesystem::path& path, const RunHeader& header, const Model& model,
                 double flush_every_seconds = 0.5);
   ~RunFileWriter();  // closes; the status stays "incomplete" unless finish() was called

@@ -183,6 +183,10 @@ const std::array kSeries = {
                PBDBENCH_SHADOW(gap_max)},
     SeriesSpec{"shadow_constraint_error_max", "1", "constraint_error_max of x*", 1, true,
                PBDBENCH_SHADOW(error_max)},
+    SeriesSpec{"shadow_force_error", "1",
+               "|F - F*| / |F*|: the run's support force against the shadow's (the forces of the "
+               "converged step from the same start); NaN without a support force",
+               1, true, PBDBENCH_SHADOW(force_error)},
     SeriesSpec{"shadow_residual_g", "kg m", "the shadow's residual_g at x*", 1, true,
                PBDBENCH_SHADOW(residual_g)},
     SeriesSpec{"shadow_residual_h", "mixed", "the shadow's residual_h at x*", 1, true,

@@ -9,7 +9,8 @@ Each claim's [figure] (experiments/experiment.hpp) is one of:
     series   one series of the listed runs (their first trial) against time, one line per run;
              a run that exploded ends with an x at the step where it did
     bars     the listed measures, one bar each, labelled with their values; a NaN measure is
-             drawn as an empty bar labelled "NaN"
+             drawn as an empty bar labelled "NaN"; a timing measure (or one computed from one)
+             carries its 95 % interval as an error bar
 The verdict is written in the title (a reproduction's: reproduced / not reproduced). Run files are found relative to REPORT_DIR (claims.json
 stores them so); a missing run file leaves the figure out with a warning, it does not fail. A
 figure newer than claims.json and than the run files it reads is up to date and not redrawn.
@@ -89,7 +90,14 @@ def plot_bars(ax, claim):
     heights = [0.0 if v is None else v for v in values]
     if fig["log"]:
         heights = [abs(h) if h else np.nan for h in heights]
-    bars = ax.bar(range(len(names)), heights, color="tab:blue")
+    lo = [measures[n].get("lo") for n in names]
+    hi = [measures[n].get("hi") for n in names]
+    err = None
+    if any(x is not None for x in lo):
+        err = np.array([[h - (l if l is not None else h) for h, l in zip(heights, lo)],
+                        [(u if u is not None else h) - h for h, u in zip(heights, hi)]])
+        err = np.clip(np.nan_to_num(err), 0.0, None)
+    bars = ax.bar(range(len(names)), heights, color="tab:blue", yerr=err, capsize=4 if err is not None else 0)
     for b, v in zip(bars, values):
         h = b.get_height()
         y = h if np.isfinite(h) else 0.0

@@ -6,7 +6,9 @@
 #include <cstdint>
 #include <cstdlib>
 #include <stdexcept>
+#include <string>
 
+#include "core/cancel.hpp"
 #include "core/constraint_functions.hpp"
 #include "solvers/kernels.hpp"
 #include "solvers/projection_kernels.hpp"
@@ -169,12 +171,17 @@ class Program final : public CompiledProjection {
               StepReport& report) override {
     long skipped = 0;
     if (parallel_ && !per_item_ && order_ != ProjectionOrder::Sequential && order_ != ProjectionOrder::Reversed) {
-      skipped = threaded_sweeps(iterations);
-      report.iterations += iterations;
+      // One sweep per run of the threads, so that a cancellation is seen between sweeps.
+      for (int sweep = 0; sweep < iterations; ++sweep) {
+        throw_if_cancelled("a projection sweep");
+        skipped += threaded_sweeps(1);
+        ++report.iterations;
+      }
       report.skipped += static_cast<int>(skipped);
       return;
     }
     for (int sweep = 0; sweep < iterations; ++sweep) {
+      throw_if_cancelled("a projection sweep");
       if (per_item_) {
         ordering.sweep(step, substep, sweep, sequence_);
         skipped += sweep_items();
@@ -215,6 +222,8 @@ class Program final : public CompiledProjection {
           case ConstraintKind::Bending: e = eval4<ConstraintKind::Bending>(v, s, x, ln); break;
           case ConstraintKind::FemDeviatoric: e = eval4<ConstraintKind::FemDeviatoric>(v, s, x, ln); break;
           case ConstraintKind::FemHydrostatic: e = eval4<ConstraintKind::FemHydrostatic>(v, s, x, ln); break;
+          case ConstraintKind::FemStrainTriangle:
+          case ConstraintKind::FemStrainTet: return 0L;  // never compiled
         }
         // Lane by lane, in slot order.
         for (int lane = 0; lane < ln.n; ++lane) {
@@ -845,6 +854,11 @@ std::unique_ptr<CompiledProjection> compile_projection(const Model& model,
                                                        ProjectionRule rule,
                                                        const Ordering& ordering,
                                                        bool one_by_one, int width) {
+  for (const Constraint& c : model.constraints)
+    if (is_strain_kind(c.kind))
+      throw std::invalid_argument(std::string("compile_projection: the ") + to_string(c.kind) +
+                                  " constraints are vector constraints, projected item by item "
+                                  "(solvers/xpbd.cpp)");
   if (options.precision == Precision::Float)
     return std::make_unique<Program<float>>(model, options, rule, ordering, one_by_one, width);
   return std::make_unique<Program<double>>(model, options, rule, ordering, one_by_one, width);

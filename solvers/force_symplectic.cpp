@@ -5,7 +5,8 @@
 //   kinematic particles: x_i = target(t_end), v_i = motion velocity             (set_kinematic)
 //   contacts = find_contacts(x, t_end, contact_margin)
 //   f = sum_j grad C_j lambda_j,  lambda_j = -C_j / alpha_j - beta_j dC_j/dt  (model constraints)
-//     - grad E_e                      (FEM elements without a constraint form: corotated)
+//     - grad E_e                      (FEM elements other than stable neo-Hookean: corotated,
+//                                      StVK, linear; their strain constraints are skipped)
 //     + sum_k F_k grad C_k,  F_k = max(0, k_c (-C_k) - d_c v_n,k) for C_k < 0   (contacts)
 //   v_i += h g + h w_i f_i,  x_i += h v_i                                     (dynamic particles)
 // All forces are evaluated at the positions and velocities at the start of the substep (with
@@ -22,6 +23,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/cancel.hpp"
 #include "core/constraint_functions.hpp"
 #include "core/fem.hpp"
 #include "solvers/step_common.hpp"
@@ -90,6 +92,7 @@ class ForceSymplecticSolver final : public Solver {
     f_.resize(particles_, 3);
 
     for (int s = 0; s < substeps; ++s) {
+      throw_if_cancelled("a substep");
       const double t_end = state.time + (s + 1) * h;
       PhaseTimer timer;
       set_kinematic(model, x, v, t_end);
@@ -102,6 +105,7 @@ class ForceSymplecticSolver final : public Solver {
       // Forces at (x, v), the start of the substep.
       f_.setZero();
       for (size_t j = 0; j < model.constraints.size(); ++j) {
+        if (is_strain_kind(model.constraints[j].kind)) continue;  // its element's energy (below)
         bool valid = true;
         state.lambda[j] = add_constraint_force(model, model.constraints[j], x, v, f_, valid);
         if (!valid) ++report.skipped;
@@ -109,7 +113,7 @@ class ForceSymplecticSolver final : public Solver {
       for (int k : energy_elements_) {
         const FemElement& e = model.elements[static_cast<size_t>(k)];
         const fem::Vec12 grad = fem::element_gradient(e, x);
-        for (int i = 0; i < 4; ++i)
+        for (int i = 0; i < e.vertices; ++i)
           f_.row(e.particles[static_cast<size_t>(i)]) -= grad.segment<3>(3 * i).transpose();
       }
       for (const Contact& c : contacts_) {

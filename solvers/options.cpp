@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
 #include <thread>
 
@@ -52,10 +53,17 @@ bool parse_precision(const std::string& name, Precision& out) {
 }
 
 int available_cores() {
+  int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   cpu_set_t set;
   CPU_ZERO(&set);
-  if (sched_getaffinity(0, sizeof set, &set) == 0) return std::max(1, CPU_COUNT(&set));
-  return std::max(1u, std::thread::hardware_concurrency());
+  if (sched_getaffinity(0, sizeof set, &set) == 0) cores = std::max(1, CPU_COUNT(&set));
+  // A share given by a parent that runs several runs at once (sweep --jobs, harness/sweep.cpp).
+  if (const char* share = std::getenv(kCoresVariable)) {
+    char* end = nullptr;
+    const long n = std::strtol(share, &end, 10);
+    if (end != share && *end == '\0' && n >= 1) cores = std::min(cores, static_cast<int>(std::min(n, 1024L)));
+  }
+  return cores;
 }
 
 int resolve_threads(int threads) { return threads >= 1 ? threads : available_cores(); }

@@ -53,7 +53,10 @@ const char* to_string(Precision precision);  // "double", "float"
 // Parses the names above; returns false when unknown.
 bool parse_precision(const std::string& name, Precision& out);
 
-// The CPUs this process may run on (its affinity mask), at least 1: what solver.threads = 0 means.
+// The CPUs this process may run on (its affinity mask), at least 1, and at most the share in the
+// environment variable PBDBENCH_CORES when it holds a whole number >= 1 (sweep --jobs N gives
+// each of its runs max(1, cores / N)): what solver.threads = 0 means.
+inline constexpr const char* kCoresVariable = "PBDBENCH_CORES";
 int available_cores();
 
 // solver.threads resolved: `threads` when >= 1, else available_cores().

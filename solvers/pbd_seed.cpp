@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "core/cancel.hpp"
 #include "core/constraint_functions.hpp"
 #include "core/contacts.hpp"
 #include "solvers/kernels.hpp"
@@ -286,6 +287,7 @@ class PbdSeedSolver final : public Solver {
     // within each kind's loop.
     const int m = constraints_;
     for (int iter = 0; iter < iterations; ++iter) {
+      throw_if_cancelled("a projection sweep");
       ordering_.sweep(step, substep, iter, sequence_);
       for (auto& list : by_kind_) list.clear();
       for (int j : sequence_) {

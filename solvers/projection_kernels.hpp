@@ -400,6 +400,8 @@ inline long project_chunk(const ChunkSpec& c, const BlockView<T>& b, T* P, const
                         : pbd_four<T, W, ConstraintKind::Bending, false>(b, lo, hi, P, J);
       case ConstraintKind::FemDeviatoric:
       case ConstraintKind::FemHydrostatic:
+      case ConstraintKind::FemStrainTriangle:
+      case ConstraintKind::FemStrainTet:
         return 0;  // pbd refuses FEM (solvers/pbd.cpp)
     }
     return 0;
@@ -428,6 +430,9 @@ inline long project_chunk(const ChunkSpec& c, const BlockView<T>& b, T* P, const
       return four(std::integral_constant<ConstraintKind, ConstraintKind::FemDeviatoric>{});
     case ConstraintKind::FemHydrostatic:
       return four(std::integral_constant<ConstraintKind, ConstraintKind::FemHydrostatic>{});
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet:
+      return 0;  // vector constraints: never compiled (compile_projection refuses them)
   }
   return 0;
 }

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/cancel.hpp"
 #include "core/contacts.hpp"
 #include "core/model.hpp"
 #include "solvers/kernels.hpp"
@@ -102,6 +103,7 @@ void run_sweeps(const Model& model, const SolverOptions& options, const Ordering
   const bool jacobi = ordering.jacobi();
   const bool single = options.precision == Precision::Float;
   for (int sweep = 0; sweep < options.iterations; ++sweep) {
+    throw_if_cancelled("a projection sweep");
     ordering.sweep(step, substep, sweep, work.sequence);
     work.pending.clear();
     for (int j : work.sequence) {

@@ -25,6 +25,12 @@
 // double, the state rounded to float at every write) is the reference the compiled path is tested
 // against.
 //
+// FEM strain kinds (StVK and linear elements; Macklin et al. 2016, sec. 6.3) are vector
+// constraints: each is updated as a block (fem::xpbd_strain_update, eq. 16 on its components), its
+// multiplier vector kept in the solver (State::lambda holds 0 for them; the residuals include
+// them). Under Jacobi the vector takes omega dlambda at once, which is what the deferred update of
+// the scalar multipliers gives, since no other item reads it.
+//
 // Jacobi order: every dlambda_j and correction is computed from the positions at the start of the
 // sweep; then x_i += omega (sum of corrections) / n_i (n_i with jacobi_averaging, else 1) and
 // lambda_j += omega dlambda_j. With averaging the positions move by less than M^-1 grad C^T
@@ -40,6 +46,7 @@
 
 #include "core/contacts.hpp"
 #include "solvers/compiled_projection.hpp"
+#include "core/fem.hpp"
 #include "solvers/kernels.hpp"
 #include "solvers/ordering.hpp"
 #include "solvers/step_common.hpp"
@@ -57,7 +64,18 @@ class XpbdSolver final : public Solver {
         constraints_(model.constraint_count()),
         ordering_(model, options),
         work_(model.particle_count()) {
-    if (path != ProjectionPath::PerItem)
+    strain_slot_.assign(model.constraints.size(), -1);
+    for (size_t j = 0; j < model.constraints.size(); ++j) {
+      const Constraint& c = model.constraints[j];
+      if (!is_strain_kind(c.kind)) continue;
+      strain_slot_[j] = static_cast<int>(strain_alpha_.size());
+      strain_alpha_.push_back(fem::strain_compliance(model.elements[static_cast<size_t>(c.element)]));
+    }
+    strain_lambda_.assign(strain_alpha_.size(), fem::Vec6::Zero());
+    // The compiled sweeps take the scalar kinds; a model with strain-vector constraints runs on
+    // the per-item path.
+    const bool strain = !strain_alpha_.empty();
+    if (path != ProjectionPath::PerItem && !strain)
       compiled_ = compile_projection(model, options, ProjectionRule::Xpbd, ordering_,
                                      path == ProjectionPath::CompiledOneByOne);
   }
@@ -98,6 +116,7 @@ class XpbdSolver final : public Solver {
       work_.p = x_pred_;
       work_.v_before = v;
       std::fill(lambda.begin(), lambda.end(), 0.0);
+      std::fill(strain_lambda_.begin(), strain_lambda_.end(), fem::Vec6::Zero());
       timer.lap(report.time_predict);
 
       find_substep_contacts(model, t_end, options_.contact_margin, x, ordering_, work_, report);
@@ -112,10 +131,10 @@ class XpbdSolver final : public Solver {
         for (char a : work_.contact_active) report.active_contacts += a;
       } else {
         run_sweeps(model, options_, ordering_, state.step, s, &lambda, work_, report,
-                   [&](int j, Stencil& st) { return project(model, j, t_end, x, lambda, st); });
+                   [&](int j, Stencil& st) { return project(model, j, t_end, h, x, lambda, st); });
       }
       timer.lap(report.time_project);
-      if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, lambda, report);
+      if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, h, lambda, report);
       timer.lap(report.time_residual);
 
       finish_substep(model, t_end, h, work_, x, v, options_.precision);
@@ -133,10 +152,11 @@ class XpbdSolver final : public Solver {
  private:
   // The update of item j (model constraint j < m, else contact j - m) at the current positions
   // work_.p; x_n holds the positions at the start of the substep.
-  Projection project(const Model& model, int j, double t_end, const Points& x_n,
+  Projection project(const Model& model, int j, double t_end, double h, const Points& x_n,
                      const std::vector<double>& lambda, Stencil& st) {
     if (j < constraints_) {
       const Constraint& c = model.constraints[static_cast<size_t>(j)];
+      if (is_strain_kind(c.kind)) return project_strain(model, j, c, h, st);
       const XpbdCoefficients& k = coefficients_[static_cast<size_t>(j)];
       const Weights w = constraint_stencil(model, c, st);
       std::array<Vec3, 4> displacement{};
@@ -155,8 +175,23 @@ class XpbdSolver final : public Solver {
     return xpbd_project_contact(e, w, st.count, work_.contact_lambda[kc], st.correction);
   }
 
+  // A strain-vector element: the block update of its components (see the top of this file).
+  Projection project_strain(const Model& model, int j, const Constraint& c, double h, Stencil& st) {
+    const Weights w = constraint_stencil(model, c, st);
+    const int slot = strain_slot_[static_cast<size_t>(j)];
+    const fem::StrainEval e = fem::eval_strain(model.elements[static_cast<size_t>(c.element)], work_.p);
+    fem::Vec6 dlambda;
+    fem::Vec6& lambda = strain_lambda_[static_cast<size_t>(slot)];
+    if (!fem::xpbd_strain_update(e, w, strain_alpha_[static_cast<size_t>(slot)] / (h * h), lambda,
+                                 st.correction.dx, dlambda))
+      return Projection::Skipped;
+    lambda += (ordering_.jacobi() ? options_.jacobi_relaxation : 1.0) * dlambda;
+    st.correction.dlambda = 0.0;
+    return Projection::Applied;
+  }
+
   // Macklin et al. 2016, eqs. 8 and 9, at the final positions work_.p of the substep.
-  void residuals(const Model& model, double t_end, const std::vector<double>& lambda,
+  void residuals(const Model& model, double t_end, double h, const std::vector<double>& lambda,
                  StepReport& report) const {
     const Points& p = work_.p;
     Points g = Points::Zero(particles_, 3);
@@ -170,6 +205,18 @@ class XpbdSolver final : public Solver {
     } else {
       for (size_t j = 0; j < model.constraints.size(); ++j) {
         const Constraint& c = model.constraints[j];
+        if (is_strain_kind(c.kind)) {  // g -= J^T lambda, h = C + alpha~ lambda (vectors)
+          const int slot = strain_slot_[j];
+          const fem::StrainEval e = fem::eval_strain(model.elements[static_cast<size_t>(c.element)], p);
+          const fem::Vec6& l = strain_lambda_[static_cast<size_t>(slot)];
+          for (int i = 0; i < arity(c.kind); ++i)
+            for (int k = 0; k < e.components; ++k)
+              g.row(c.particles[static_cast<size_t>(i)]) -=
+                  l(k) * e.grad[static_cast<size_t>(k)][static_cast<size_t>(i)].transpose();
+          const fem::Vec6 hj = e.C + strain_alpha_[static_cast<size_t>(slot)] * l / (h * h);
+          h2 += hj.squaredNorm();  // its entries past the components are 0
+          continue;
+        }
         const ConstraintEval e = eval_constraint(model, c, p);
         for (int i = 0; i < arity(c.kind); ++i)
           g.row(c.particles[static_cast<size_t>(i)]) -=
@@ -199,6 +246,11 @@ class XpbdSolver final : public Solver {
   int constraints_;
   Ordering ordering_;
   std::vector<XpbdCoefficients> coefficients_;  // (m) for the current h
+  // Strain kinds: slot of constraint j (-1 for the other kinds), and per slot the compliance
+  // matrix (fem::strain_compliance, 1/(Pa m^3)) and the substep's multiplier vector (units of C kg).
+  std::vector<int> strain_slot_;           // (m)
+  std::vector<fem::Mat6> strain_alpha_;    // (strain constraints)
+  std::vector<fem::Vec6> strain_lambda_;   // (strain constraints)
 
   // Scratch, kept between steps to avoid reallocation.
   Points x_pred_;        // (n x 3) m, x~, the predicted positions
@@ -210,14 +262,21 @@ class XpbdSolver final : public Solver {
 
 std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model,
                                          ProjectionPath path) {
-  // FEM elements enter xpbd only through their constraint form (the FEM kinds, Macklin and
-  // Mueller 2021), which the stable neo-Hookean material has and the others do not.
+  // FEM elements enter xpbd only through their constraint form (the FEM kinds: Macklin and
+  // Mueller 2021 for the stable neo-Hookean, Macklin et al. 2016 for StVK and linear); corotated
+  // has none.
   for (size_t k = 0; k < model.elements.size(); ++k)
-    if (model.elements[k].material != Material::StableNeoHookean)
+    if (!fem::has_constraint_form(model.elements[k].material))
       throw std::invalid_argument(
           "xpbd cannot simulate element " + std::to_string(k) + ": its material " +
           to_string(model.elements[k].material) +
-          " has no XPBD constraint form (only stable_neo_hookean has); use a reference solver");
+          " has no XPBD constraint form (stable_neo_hookean, stvk and linear have); use a "
+          "reference solver");
+  for (size_t j = 0; j < model.constraints.size(); ++j)
+    if (is_strain_kind(model.constraints[j].kind) && model.constraints[j].damping != 0.0)
+      throw std::invalid_argument("xpbd: constraint " + std::to_string(j) + " (" +
+                                  to_string(model.constraints[j].kind) +
+                                  ") has damping: the strain-vector constraints have none");
   return std::make_unique<XpbdSolver>(options, model, path);
 }
 

@@ -72,7 +72,7 @@ TEST(Describe, UnknownKind) {
   } catch (const ConfigError& e) {
     EXPECT_EQ(std::string(e.what()),
               "'clth' is not a scene kind (did you mean 'cloth'?); the kinds are particle, spring, "
-              "pendulum, chain, cloth, tet_block, spheres, mesh");
+              "pendulum, chain, cloth, tet_block, tri_block, spheres, mesh");
   }
 }
 

@@ -276,7 +276,7 @@ TEST(LoadErrors, UnknownSceneKind) {
   const ConfigError e = load_error("[scene]\nkind = \"clth\"\n");
   expect_error(e, "bad.toml", 2, "scene.kind",
                "scene.kind = 'clth' is not one of particle, spring, pendulum, chain, cloth, "
-               "tet_block, spheres, mesh (did you mean 'cloth'?)");
+               "tet_block, tri_block, spheres, mesh (did you mean 'cloth'?)");
 }
 
 TEST(LoadErrors, KeyOfAnotherSceneKind) {
@@ -372,6 +372,83 @@ TEST(LoadErrors, MissingScenarioFile) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("no scenario"), std::string::npos) << e.what();
   }
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// The run as planned, and values beyond double precision: refused naming the key and line.
+
+TEST(LoadErrors, AStepCountThatOverflowsOrIsZero) {
+  expect_error(load_error("[scene]\nkind = \"particle\"\n[time]\ndt = 1e-300\nduration = 2.0\n"), "bad.toml", 4,
+               "time.dt",
+               "time.duration = 2.0 s, time.dt = 1e-300 s: 2e+300 steps, more than the 1e+12 a run may plan");
+  expect_error(load_error("[scene]\nkind = \"particle\"\n[time]\ndt = 0.1\nduration = 0.01\n"), "bad.toml", 5,
+               "time.duration",
+               "time.duration = 0.01 s, time.dt = 0.1 s: the run would take no step (the step count is "
+               "duration / dt rounded, here 0.09999999999999999)");
+  // Half a step rounds to one: accepted.
+  EXPECT_EQ(run_options(load_text("[scene]\nkind = \"particle\"\n[time]\ndt = 0.1\nduration = 0.05\n", "a.toml"))
+                .steps(),
+            1);
+}
+
+TEST(LoadErrors, PhysicalValuesBeyondDoublePrecisionNameTheirKey) {
+  const ConfigError mass = load_error("[scene]\nkind = \"particle\"\nmass = 1e-320\n");
+  EXPECT_EQ(mass.key(), "scene.mass");
+  EXPECT_EQ(mass.source().line, 3);
+  EXPECT_NE(std::string(mass.what()).find("smaller than 1e-100 kg"), std::string::npos) << mass.what();
+  const ConfigError gravity = load_error("gravity = [0.0, -1e308, 0.0]\n[scene]\nkind = \"chain\"\n");
+  EXPECT_EQ(gravity.key(), "gravity");
+  EXPECT_EQ(gravity.source().line, 1);
+  const ConfigError origin = load_error("[scene]\nkind = \"cloth\"\norigin = [1e308, 0.0, 0.0]\n");
+  EXPECT_EQ(origin.key(), "scene.origin");
+  const ConfigError radius = load_error(
+      "[scene]\nkind = \"particle\"\n[[collider]]\ntype = \"sphere\"\nradius = 1e200\n");
+  EXPECT_EQ(radius.key(), "collider.0.radius");
+  EXPECT_EQ(radius.source().line, 5);
+  // A tiny component of a vector is harmless; "never" (1e300 s) is a time, not a quantity.
+  EXPECT_NO_THROW((void)load_text("gravity = [1e-300, -9.81, 0.0]\n[scene]\nkind = \"particle\"\n", "a.toml"));
+}
+
+TEST(LoadErrors, ACollidersIndexThatOverflowsIsNamed) {
+  const ConfigError e = load_error("[scene]\nkind = \"chain\"\n[[collider]]\ntype = \"plane\"\n", "bad.toml",
+                                   testing::sets({"collider.99999999999999999999.radius=1"}));
+  EXPECT_EQ(e.key(), "collider.99999999999999999999.radius");
+  EXPECT_NE(std::string(e.what()).find("there is no collider 99999999999999999999"), std::string::npos) << e.what();
+}
+
+TEST(LoadErrors, AnEmptyScenarioFileIsRefused) {
+  TempDir dir("empty_scenario");
+  for (const char* text : {"", "  \n\t\n", "# only a comment\n"}) {
+    dir.write("empty.toml", text);
+    const std::string file = (dir.path() / "empty.toml").string();
+    try {
+      (void)load(file);
+      ADD_FAILURE() << "an empty scenario was accepted: '" << text << "'";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.source().file, file);
+      EXPECT_NE(std::string(e.what()).find("has no keys"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(LoadErrors, AMeshThatIsADirectoryOrADeviceIsNamedSo) {
+  TempDir dir("mesh_not_a_file");
+  std::filesystem::create_directories(dir.path() / "meshes");
+  const std::string file = (dir.path() / "m.toml").string();
+  const ConfigError d = load_error("[scene]\nkind = \"mesh\"\nfile = \"meshes\"\n", file);
+  EXPECT_EQ(d.key(), "scene.file");
+  EXPECT_NE(std::string(d.what()).find("is a directory, not a mesh file"), std::string::npos) << d.what();
+  const ConfigError z = load_error("[scene]\nkind = \"mesh\"\nfile = \"/dev/zero\"\n", file);
+  EXPECT_NE(std::string(z.what()).find("not a regular file"), std::string::npos) << z.what();
+}
+
+TEST(LoadErrors, AHugeUnknownKeyIsCutInTheMessage) {
+  const std::string key(1 << 20, 'k');
+  const ConfigError e = load_error("[scene]\nkind = \"spring\"\n" + key + " = 1\n");
+  EXPECT_EQ(e.source().line, 3);
+  EXPECT_LT(std::string(e.what()).size(), 300u);
+  EXPECT_NE(std::string(e.what()).find("(1048582 characters)"), std::string::npos);
 }
 
 }  // namespace

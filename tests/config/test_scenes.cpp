@@ -43,6 +43,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"balls_in_bowl", 125},    // 5 x 5 x 5
     {"cantilever_beam", 208},  // 13 x 4 x 4 vertices
     {"cantilever_fem", 99},    // 11 x 3 x 3 vertices
+    {"cantilever_plane", 105},  // 21 x 5 vertices
     {"cloth_on_character", 768},  // 24 x 32
     {"failures/cloth_on_ground", 256},         // 16 x 16
     {"failures/cyclic_penetration", 3},        // A, B and C
@@ -54,6 +55,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"failures/violated_initial_state", 256},  // 16 x 16
     {"failures/zero_rest_length", 11},         // 10 links
     {"free_fall", 1},
+    {"grid_on_ground", 1024},  // 32 x 32
     {"hanging_bar", 44},  // 2 x 11 x 2 vertices
     {"hanging_chain", 20},
     {"hanging_cloth", 4096},
@@ -460,9 +462,9 @@ TEST(Scenes, MeshMaterial) {
   }
 }
 
-// A mesh imported as it is (reorient = false) with a negatively oriented tet cannot take a
-// material: refused at the line of scene.material, naming the tet.
-TEST(Scenes, MeshMaterialRefusesANegativeTet) {
+// A mesh imported as it is (reorient = false) with a negatively oriented tet is refused, as the
+// key's doc says, naming scene.file and the tet, with or without a material.
+TEST(Scenes, MeshWithoutReorientRefusesANegativeTet) {
   TempDir dir("negative_tet");
   dir.write("neg.node", "5 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n4 1 1 1\n");
   dir.write("neg.ele", "2 4 0\n0 1 2 3 4\n1 0 2 1 3\n");  // tet 1 is negative
@@ -470,17 +472,19 @@ TEST(Scenes, MeshMaterialRefusesANegativeTet) {
   const std::string text =
       "description = \"a negative tet\"\n[scene]\nkind = \"mesh\"\nfile = \"neg.node\"\n"
       "reorient = false\nmaterial = \"stable_neo_hookean\"\n";
-  const ConfigError e = load_error(text, file);
-  EXPECT_EQ(e.key(), "scene.material");
-  EXPECT_EQ(e.source().file, file);
-  EXPECT_EQ(e.source().line, 6);
-  const std::string what = e.what();
-  EXPECT_EQ(what.rfind(file + ":6: scene.material = 'stable_neo_hookean' cannot be built on scene.file = "
-                       "'neg.node': tet 1 (particles 0 2 1 3) is negatively oriented", 0), 0u) << what;
-  EXPECT_NE(what.find("scene.reorient"), std::string::npos) << what;
-  // Reoriented (the default), the same mesh takes the material; without a material it loads as is.
+  for (const char* material : {"stable_neo_hookean", "none"}) {
+    SCOPED_TRACE(material);
+    const ConfigError e = load_error(text, file, sets({std::string("scene.material=") + material}));
+    EXPECT_EQ(e.key(), "scene.file");
+    EXPECT_EQ(e.source().file, file);
+    EXPECT_EQ(e.source().line, 4);
+    const std::string what = e.what();
+    EXPECT_NE(what.find("tet 1"), std::string::npos) << what;
+    EXPECT_NE(what.find("negatively oriented"), std::string::npos) << what;
+    EXPECT_NE(what.find("reorient"), std::string::npos) << what;
+  }
+  // Reoriented (the default), the same mesh takes the material.
   EXPECT_EQ(build_scene(load_text(text, file, sets({"scene.reorient=true"}))).model.elements.size(), 2u);
-  EXPECT_TRUE(build_scene(load_text(text, file, sets({"scene.material=none"}))).model.elements.empty());
 }
 
 TEST(Scenes, RingOfSpheres) {

@@ -100,7 +100,7 @@ TEST(Schema, KindsAndTheirKeyCounts) {
   std::vector<std::string> names;
   for (const SceneKindInfo& k : scene_kinds()) names.push_back(k.name);
   EXPECT_EQ(names, (std::vector<std::string>{"particle", "spring", "pendulum", "chain", "cloth",
-                                             "tet_block", "spheres", "mesh"}));
+                                             "tet_block", "tri_block", "spheres", "mesh"}));
   const KeySpec* kind = detail::find_key(common_keys(), "scene.kind");
   ASSERT_NE(kind, nullptr);
   EXPECT_EQ(kind->choices, names);

@@ -1,17 +1,26 @@
 // Tests of core/fem_constraints.cpp: Lame parameters, the deformation gradient, the gradients of
 // the two XPBD constraints of the stable neo-Hookean material against central differences, the
 // constraint form against the energy it stands for, and the element builder (counts, rest values,
-// refusals).
+// refusals); the strain-vector constraint of StVK and linear elements (tets and triangles): its
+// gradients against central differences, C^T alpha^-1 C / 2 against the element energy, the block
+// update, and the triangle builder.
 //
 // The energy density Psi_snh is written out here (stable_neo_hookean_density below) so that these
 // tests do not depend on core/fem.cpp: the check is that the constraint form of
 // Macklin and Mueller 2021 is the material of core/model.hpp, whatever computes its stress.
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <array>
 #include <cmath>
+#include <functional>
+#include <vector>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+
+#include <Eigen/Geometry>
 
 #include "core/fem.hpp"
 #include "core/generators.hpp"
@@ -398,6 +407,223 @@ TEST(FemConstraints, NegativeOrDegenerateTetsAreRefusedByName) {
   what = refusal([&] { fem::add_fem_elements(m, {{0, 1, 2, 3}}, Material::StableNeoHookean, kYoung, 0.5); });
   EXPECT_NE(what.find("poisson_ratio = 0.5"), std::string::npos) << what;
   EXPECT_TRUE(m.elements.empty());
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// The strain-vector constraint (StVK and linear; Macklin et al. 2016, sec. 6.3).
+
+// A model of the three points of a random triangle in a plane z = const with one StVK element of
+// thickness 0.1 m.
+Model one_triangle_model(Random& rng) {
+  Model m;
+  for (;;) {
+    m = Model{};
+    m.rest_positions.resize(3, 3);
+    const double z = rng.uniform(-1, 1);
+    for (int i = 0; i < 3; ++i)
+      m.rest_positions.row(i) = Vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), z).transpose();
+    const Vec3 e1 = m.rest_positions.row(1) - m.rest_positions.row(0);
+    const Vec3 e2 = m.rest_positions.row(2) - m.rest_positions.row(0);
+    if (0.5 * e1.cross(e2).norm() > 0.05) break;
+  }
+  m.inv_mass.assign(3, 1.0);
+  m.radius.assign(3, 0.01);
+  fem::add_fem_triangles(m, {{0, 1, 2}}, Material::StVK, kYoung, kPoisson, 0.1);
+  return m;
+}
+
+// A random deformation of the first `count` rows of rest: a linear map with entries in
+// [-1.5, 1.5], a translation and a small jitter.
+Points deformed(Random& rng, const Points& rest) {
+  Mat3 A;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) A(r, c) = rng.uniform(-1.5, 1.5);
+  const Vec3 t = rng.vec(-1, 1);
+  Points x = rest;
+  for (int i = 0; i < rest.rows(); ++i)
+    x.row(i) = (A * rest.row(i).transpose() + t + rng.vec(-0.05, 0.05)).transpose();
+  return x;
+}
+
+// The element models the strain checks run over: tets of StVK and linear, triangles of StVK.
+std::vector<Model> strain_models(Random& rng, int count) {
+  std::vector<Model> out;
+  for (int n = 0; n < count; ++n) {
+    out.push_back(one_tet_model(random_rest_tet(rng), Material::StVK));
+    out.push_back(one_tet_model(random_rest_tet(rng), Material::Linear));
+    out.push_back(one_triangle_model(rng));
+  }
+  return out;
+}
+
+TEST(FemStrain, GradientMatchesFiniteDifferences) {
+  Random rng(41);
+  int failures = 0;
+  for (const Model& m : strain_models(rng, kConfigurations / 4)) {
+    const FemElement& e = m.elements[0];
+    const Points x = deformed(rng, m.rest_positions);
+    const fem::StrainEval ev = fem::eval_strain(e, x);
+    ASSERT_EQ(ev.components, e.vertices == 3 ? 3 : 6);
+    for (int c = 0; c < ev.components && failures < 5; ++c)
+      for (int v = 0; v < e.vertices; ++v)
+        for (int a = 0; a < 3; ++a) {
+          Points xp = x, xm = x;
+          xp(v, a) += test::kFdStep;
+          xm(v, a) -= test::kFdStep;
+          const double fd = (fem::eval_strain(e, xp).C(c) - fem::eval_strain(e, xm).C(c)) / (2.0 * test::kFdStep);
+          const double got = ev.grad[static_cast<size_t>(c)][static_cast<size_t>(v)](a);
+          if (!test::near(got, fd, test::kFdTol)) {
+            ADD_FAILURE() << to_string(e.material) << (e.vertices == 3 ? " triangle" : " tet")
+                          << ": dC_" << c << "/dx_" << v << "(" << a << ") = " << got
+                          << ", central difference " << fd;
+            ++failures;
+          }
+        }
+    // Translation invariance: the gradients of each component sum to zero over the vertices.
+    for (int c = 0; c < ev.components; ++c) {
+      Vec3 sum = Vec3::Zero();
+      for (int v = 0; v < e.vertices; ++v) sum += ev.grad[static_cast<size_t>(c)][static_cast<size_t>(v)];
+      EXPECT_LE(sum.norm(), 1e-12 * (1.0 + ev.grad[static_cast<size_t>(c)][0].norm()));
+    }
+  }
+}
+
+TEST(FemStrain, QuadraticFormOfTheComplianceIsTheElementEnergy) {
+  // C^T alpha^-1 C / 2 = V0 Psi(F) for StVK (Green strain) and linear (small strain) elements,
+  // tets and triangles: the constraint form is the material (Macklin et al. 2016, eqs. 5, 27, 28).
+  Random rng(42);
+  for (const Model& m : strain_models(rng, kConfigurations / 4)) {
+    const FemElement& e = m.elements[0];
+    const Points x = deformed(rng, m.rest_positions);
+    const fem::StrainEval ev = fem::eval_strain(e, x);
+    const int k = ev.components;
+    const Eigen::MatrixXd alpha = fem::strain_compliance(e).topLeftCorner(k, k);
+    const Eigen::VectorXd C = ev.C.head(k);
+    const double form = 0.5 * C.dot(alpha.ldlt().solve(C));
+    const double energy = fem::element_energy(e, x);
+    EXPECT_NEAR(form, energy, 1e-9 * std::max(1.0, std::abs(energy)))
+        << to_string(e.material) << (e.vertices == 3 ? " triangle" : " tet");
+    // The rest of the compliance matrix is 0, and it is symmetric positive definite.
+    const fem::Mat6 full = fem::strain_compliance(e);
+    EXPECT_EQ((full - full.transpose()).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_TRUE(full.bottomRightCorner(6 - k, 6 - k).isZero());
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(alpha).eigenvalues().minCoeff(), 0.0);
+  }
+  // The deviatoric entry is 1 / (2 mu V0), as the constraint's scalar compliance says.
+  const Model m = one_tet_model(random_rest_tet(rng), Material::StVK);
+  EXPECT_TRUE(test::near(fem::strain_compliance(m.elements[0])(5, 5), m.constraints[0].compliance,
+                         test::kRoundoff));
+}
+
+TEST(FemStrain, BlockUpdateSolvesTheLinearisedStepAndConservesMomentum) {
+  // One update: (sum_v w_v J_v J_v^T + alpha~) dlambda = -C - alpha~ lambda, dx_v = w_v J_v^T
+  // dlambda; the impulses sum to zero. Repeated updates of a single element are the quasi-Newton
+  // steps of Macklin et al. 2016, eq. 15 (K = M, g assumed 0): they converge to h = C + alpha~
+  // lambda = 0. (g = M (x - x~) - J^T lambda is not driven to 0: XPBD's fixed point, not the
+  // minimiser of the step, as the paper says of its approximation.)
+  Random rng(43);
+  for (const Model& m : strain_models(rng, 40)) {
+    const FemElement& e = m.elements[0];
+    const int nv = e.vertices;
+    std::array<double, 4> w{};
+    for (int v = 0; v < nv; ++v) w[static_cast<size_t>(v)] = rng.uniform(0.5, 2.0);
+    if (rng.uniform() < 0.3) w[0] = 0.0;  // a pinned vertex
+    const double h = 1.0 / 60.0;
+    const fem::Mat6 alpha_tilde = fem::strain_compliance(e) / (h * h) * 1e3;  // soft enough to settle
+    const Points x_pred = m.rest_positions + 0.2 * (deformed(rng, m.rest_positions) - m.rest_positions);
+    Points x = x_pred;
+    fem::Vec6 lambda = fem::Vec6::Zero();
+    for (int it = 0; it < 200; ++it) {
+      const fem::StrainEval ev = fem::eval_strain(e, x);
+      std::array<Vec3, 4> dx{};
+      fem::Vec6 dl;
+      ASSERT_TRUE(fem::xpbd_strain_update(ev, w, alpha_tilde, lambda, dx, dl));
+      if (it == 0) {
+        // The linear system holds, and the impulses J_v^T dlambda sum to zero.
+        const int k = ev.components;
+        Eigen::MatrixXd A = alpha_tilde.topLeftCorner(k, k);
+        for (int v = 0; v < nv; ++v)
+          for (int i = 0; i < k; ++i)
+            for (int j = 0; j < k; ++j)
+              A(i, j) += w[static_cast<size_t>(v)] * ev.grad[static_cast<size_t>(i)][static_cast<size_t>(v)].dot(
+                                                         ev.grad[static_cast<size_t>(j)][static_cast<size_t>(v)]);
+        const Eigen::VectorXd r = A * dl.head(k) + ev.C.head(k) + alpha_tilde.topLeftCorner(k, k) * lambda.head(k);
+        EXPECT_LE(r.norm(), 1e-9 * (1.0 + ev.C.norm()));
+        Vec3 impulse = Vec3::Zero();
+        for (int v = 0; v < nv; ++v)
+          for (int c = 0; c < k; ++c) impulse += dl(c) * ev.grad[static_cast<size_t>(c)][static_cast<size_t>(v)];
+        EXPECT_LE(impulse.norm(), 1e-9 * (1.0 + dl.norm()));
+      }
+      for (int v = 0; v < nv; ++v) x.row(v) += dx[static_cast<size_t>(v)].transpose();
+      lambda += dl;
+    }
+    const fem::StrainEval ev = fem::eval_strain(e, x);
+    const fem::Vec6 hres = ev.C + alpha_tilde * lambda;  // 0 past the components
+    EXPECT_LE(hres.norm(), 1e-9) << to_string(e.material);
+  }
+  // Every vertex pinned: nothing to move, the update refuses.
+  const Model m = one_tet_model(random_rest_tet(rng), Material::StVK);
+  std::array<Vec3, 4> dx{};
+  fem::Vec6 dl;
+  EXPECT_FALSE(fem::xpbd_strain_update(fem::eval_strain(m.elements[0], m.rest_positions),
+                                       {0.0, 0.0, 0.0, 0.0}, fem::Mat6::Zero(), fem::Vec6::Zero(), dx, dl));
+}
+
+TEST(FemStrain, BuildersAddOneStrainConstraintPerElement) {
+  Random rng(44);
+  Model m = one_tet_model(random_rest_tet(rng), Material::Linear);
+  ASSERT_EQ(m.constraints.size(), 1u);
+  EXPECT_EQ(m.constraints[0].kind, ConstraintKind::FemStrainTet);
+  EXPECT_EQ(m.group_names, (std::vector<std::string>{"fem_strain"}));
+  // At rest the strain is 0; eval_constraint reports its norm, with no single gradient.
+  const ConstraintEval rest = eval_constraint(m, m.constraints[0], m.rest_positions);
+  EXPECT_FALSE(rest.valid);
+  EXPECT_LE(rest.C, 1e-14);
+
+  Model t = one_triangle_model(rng);
+  ASSERT_EQ(t.elements.size(), 1u);
+  EXPECT_EQ(t.elements[0].vertices, 3);
+  EXPECT_EQ(t.elements[0].particles[3], -1);
+  const Vec3 e1 = t.rest_positions.row(1) - t.rest_positions.row(0);
+  const Vec3 e2 = t.rest_positions.row(2) - t.rest_positions.row(0);
+  EXPECT_TRUE(test::near(t.elements[0].rest_volume, 0.5 * e1.cross(e2).norm() * 0.1, test::kRoundoff));
+  ASSERT_EQ(t.constraints.size(), 1u);
+  EXPECT_EQ(t.constraints[0].kind, ConstraintKind::FemStrainTriangle);
+  EXPECT_EQ(arity(t.constraints[0].kind), 3);
+  // At rest, and after a rotation in the plane, the Green strain is 0.
+  EXPECT_LE(fem::eval_strain(t.elements[0], t.rest_positions).C.norm(), 1e-14);
+  Points turned = t.rest_positions;
+  const Mat3 Q = Eigen::AngleAxisd(0.7, Vec3::UnitZ()).toRotationMatrix();
+  for (int i = 0; i < 3; ++i) turned.row(i) = (Q * t.rest_positions.row(i).transpose()).transpose();
+  EXPECT_LE(fem::eval_strain(t.elements[0], turned).C.norm(), 1e-14);
+  // Not in a plane z = const: refused.
+  Model tilted = t;
+  tilted.elements.clear();
+  tilted.constraints.clear();
+  tilted.rest_positions(2, 2) += 0.3;
+  std::string tilt = refusal([&] {
+    fem::add_fem_triangles(tilted, {{0, 1, 2}}, Material::StVK, kYoung, kPoisson, 0.1);
+  });
+  EXPECT_NE(tilt.find("does not lie in a plane z = const"), std::string::npos) << tilt;
+
+  // Refusals: another material on triangles, a degenerate triangle, a bad thickness.
+  std::string what = refusal([&] {
+    fem::add_fem_triangles(t, {{0, 1, 2}}, Material::StableNeoHookean, kYoung, kPoisson, 0.1);
+  });
+  EXPECT_NE(what.find("only stvk has triangles"), std::string::npos) << what;
+  Model line;
+  line.rest_positions.resize(3, 3);
+  line.rest_positions << 0, 0, 0, 1, 0, 0, 2, 0, 0;
+  line.inv_mass.assign(3, 1.0);
+  line.radius.assign(3, 0.01);
+  what = refusal([&] { fem::add_fem_triangles(line, {{0, 1, 2}}, Material::StVK, kYoung, kPoisson, 0.1); });
+  EXPECT_NE(what.find("triangle 0 (particles 0 1 2) is degenerate"), std::string::npos) << what;
+  what = refusal([&] { fem::add_fem_triangles(t, {{0, 1, 2}}, Material::StVK, kYoung, kPoisson, 0.0); });
+  EXPECT_NE(what.find("thickness = 0"), std::string::npos) << what;
+  EXPECT_TRUE(fem::has_constraint_form(Material::StVK));
+  EXPECT_TRUE(fem::has_constraint_form(Material::Linear));
+  EXPECT_FALSE(fem::has_constraint_form(Material::Corotated));
 }
 
 }  // namespace

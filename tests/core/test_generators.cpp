@@ -406,6 +406,50 @@ TEST(Generators, TetBlockOptionsAndSurfaceClosedMerging) {
   EXPECT_FALSE(mixed2.surface_closed);
 }
 
+TEST(Generators, TriBlockGeometryMassWindingAndEdges) {
+  TriBlockSpec spec;
+  spec.cells = {4, 2};
+  spec.size = {1.0, 0.5};
+  spec.origin = Vec3(0.0, 1.0, 0.0);
+  spec.density = 100.0;
+  spec.thickness = 0.2;
+  spec.edges = true;
+  spec.edge = ConstraintParams{1e-6, 1.0, 0.0};
+  Model m;
+  const ParticleRange r = add_tri_block(m, spec);
+  EXPECT_EQ(r.size(), 5 * 3);
+  ASSERT_EQ(m.triangles.size(), 16u);
+  // Vertex (i, j) at origin + (i w / cx, j h / cy, 0).
+  EXPECT_TRUE(test::near(Vec3(m.rest_positions.row(r.begin + 4 + 5 * 2)), Vec3(1.0, 1.5, 0.0), test::kRoundoff));
+  // Counter-clockwise seen from +z, none degenerate; the area sums to w h.
+  double area = 0.0;
+  for (const auto& t : m.triangles) {
+    const Vec3 n = Vec3(m.rest_positions.row(t[1]) - m.rest_positions.row(t[0]))
+                       .cross(Vec3(m.rest_positions.row(t[2]) - m.rest_positions.row(t[0])));
+    EXPECT_GT(n.z(), 0.0);
+    area += 0.5 * n.norm();
+  }
+  EXPECT_TRUE(test::near(area, 0.5, test::kRoundoff));
+  // Mass: density x thickness x area.
+  double mass = 0.0;
+  for (double w : m.inv_mass) mass += 1.0 / w;
+  EXPECT_TRUE(test::near(mass, 100.0 * 0.2 * 0.5, test::kRoundoff));
+  // Unique edges: 4 x 3 horizontal + 5 x 2 vertical + 8 diagonals = 30, each a satisfied
+  // distance constraint.
+  EXPECT_EQ(m.edges.size(), 30u);
+  EXPECT_EQ(count_group(m, "edge"), 30);
+  for (const Constraint& c : m.constraints) EXPECT_LE(std::abs(eval_constraint(c, m.rest_positions).C), 1e-15);
+  // The diagonals alternate: cell (0, 0) is split along (0,0)-(1,1), cell (1, 0) along (2,0)-(1,1).
+  std::set<std::pair<int, int>> edges;
+  for (const auto& e : m.edges) edges.insert({e[0], e[1]});
+  EXPECT_TRUE(edges.count({0, 6}));
+  EXPECT_TRUE(edges.count({2, 6}));
+  EXPECT_FALSE(edges.count({1, 5}));
+  TriBlockSpec bad;
+  bad.cells = {0, 1};
+  EXPECT_THROW(add_tri_block(m, bad), std::invalid_argument);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Packed spheres.
 

@@ -1,7 +1,8 @@
 // experiments/evaluate and experiments/report: a small experiment run end to end, its verdicts, the reuse of
-// current run files, the records and the report.
+// current run files, the records and the report; what makes a part inconclusive.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -51,16 +52,43 @@ value = "fall * 0 + (fall > 100) / 0 * 0"
 doc = "NaN on purpose (0 * inf)"
 [[part]]
 says = "it falls g t^2/2"
+quote = "落下"
+translation = "falls"
+judges = "method"
 rule = "abs(fall - 9.81 * 0.25 / 2) < 0.05"
 [[part]]
 says = "it falls 10 m"
+quote = "落下十米"
+translation = "falls ten metres"
+judges = "method"
 rule = "fall > 10"
 [[part]]
 says = "unmeasurable"
+quote = "无"
+translation = "none"
+judges = "method"
 rule = "not_measured > 0"
 [[part]]
 says = "why"
+quote = "为什么"
+translation = "why"
+judges = "method"
 untestable = "no reason to"
+[[part]]
+says = "it falls less than 2 m, beyond the regime"
+quote = "落下"
+translation = "falls"
+judges = "method"
+regime = "beyond"
+rule = "fall < 2"
+[[part]]
+says = "decided only when it fell at all"
+quote = "落下"
+translation = "falls"
+judges = "method"
+rule = "fall > 0"
+requires = "fall > 100"
+requires_why = "the particle must fall more than 100 m"
 )toml";
 
 TEST(Evaluate, RunsMeasuresAndDecides) {
@@ -73,19 +101,36 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
   ASSERT_EQ(r.runs.size(), 1u);
   EXPECT_EQ(r.runs[0].complete, 3);
   EXPECT_EQ(r.runs[0].reused, 0);
+  EXPECT_EQ(r.runs[0].solver, "xpbd");
   ASSERT_EQ(r.measures.size(), 3u);
   EXPECT_EQ(r.measures[0].trials.size(), 3u);
   EXPECT_NEAR(r.measures[0].value, 9.81 * 0.25 / 2, 0.05);
   EXPECT_EQ(r.measures[1].value, 0.0);
   EXPECT_TRUE(std::isnan(r.measures[2].value));
-  ASSERT_EQ(r.parts.size(), 4u);
+  ASSERT_EQ(r.parts.size(), 6u);
   EXPECT_EQ(r.parts[0].verdict, Verdict::Supported);
   EXPECT_EQ(r.parts[1].verdict, Verdict::Contradicted);
-  EXPECT_EQ(r.parts[2].verdict, Verdict::NotTestable);
+  EXPECT_EQ(r.parts[2].verdict, Verdict::Inconclusive);  // a measure it needs is NaN
   EXPECT_NE(r.parts[2].reason.find("not_measured"), std::string::npos) << r.parts[2].reason;
   EXPECT_EQ(r.parts[3].verdict, Verdict::NotTestable);
   EXPECT_EQ(r.parts[3].reason, "no reason to");
-  EXPECT_EQ(r.verdict, Verdict::Contradicted);
+  EXPECT_EQ(r.parts[4].verdict, Verdict::Supported);
+  EXPECT_TRUE(r.parts[4].beyond);
+  EXPECT_EQ(r.parts[5].verdict, Verdict::Inconclusive);  // requires fails
+  EXPECT_NE(r.parts[5].reason.find("the particle must fall more than 100 m"), std::string::npos) << r.parts[5].reason;
+  ASSERT_EQ(r.parts[0].judged_with.size(), 1u);
+  EXPECT_EQ(r.parts[0].judged_with[0], "xpbd (xpbd)");
+  // Supported and contradicted among the decided parts in the article's regime: mixed.
+  EXPECT_EQ(r.verdict, Verdict::Mixed);
+  const PartCounts counts = count_parts({r});
+  EXPECT_EQ(counts.article[static_cast<int>(Verdict::Supported)], 1);
+  EXPECT_EQ(counts.article[static_cast<int>(Verdict::Contradicted)], 1);
+  EXPECT_EQ(counts.article[static_cast<int>(Verdict::Inconclusive)], 2);
+  EXPECT_EQ(counts.article[static_cast<int>(Verdict::NotTestable)], 1);
+  EXPECT_EQ(counts.beyond[static_cast<int>(Verdict::Supported)], 1);
+  EXPECT_EQ(part_counts_line({r}),
+            "5 parts in the article's regime: 1 supported, 1 contradicted, 2 inconclusive, 1 not testable; "
+            "1 beyond it: 1 supported, 0 contradicted, 0 inconclusive, 0 not testable");
 
   // The second time, the run files are current and read instead of run; the numbers are equal.
   const ClaimResult again = evaluate_claim(ex, options);
@@ -104,16 +149,148 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
   ASSERT_EQ(diff.size(), 1u);
   EXPECT_NE(diff[0].find("S9.1.1: recorded contradicted, now supported"), std::string::npos) << diff[0];
 
-  // The report has the row, the rule and the verdicts.
+  // The report has the counts first, the row, the words of the article, the rules and the verdicts.
   ReportContext ctx;
   ctx.command = "pbdbench claims";
   const std::string md = report_markdown({r}, ctx);
-  EXPECT_NE(md.find("| [S9.1](#s91) | things fall |"), std::string::npos) << md;
+  EXPECT_NE(md.find("**5 parts in the article's regime: 1 supported"), std::string::npos) << md;
+  EXPECT_NE(md.find("| [S9.1](#s91) | things fall | 1 supported, 1 contradicted, 2 inconclusive, 1 not testable, 1 beyond | **mixed** |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("> 落下十米"), std::string::npos);
   EXPECT_NE(md.find("`abs(fall - 9.81 * 0.25 / 2) < 0.05`"), std::string::npos);
-  EXPECT_NE(md.find("**contradicted**"), std::string::npos);
-  EXPECT_NE(md.find("not testable: no reason to"), std::string::npos);
+  EXPECT_NE(md.find("**not testable**: no reason to"), std::string::npos);
+  EXPECT_NE(md.find("beyond the article's regime"), std::string::npos);
   const std::string js = results_json({r}, ctx, dir);
   EXPECT_NE(js.find("\"runs/S9.1/xpbd-000.h5\""), std::string::npos) << js;
+}
+
+// A run that explodes: the listing to the letter tears a cloth within a few steps (D3).
+const char* kExplodes = R"toml(id = "S9.2"
+section = "9.2"
+experiment = "the listing on a cloth"
+scenario = "hanging_cloth"
+[set]
+"time.duration" = 0.2
+"scene.resolution" = [8, 8]
+[[run]]
+name = "letter"
+set = { "solver.name" = "pbd-seed" }
+[[measure]]
+name = "stretch"
+run = "letter"
+value = "max(constraint_error_max)"
+doc = "largest link error"
+[[measure]]
+name = "exploded_letter"
+run = "letter"
+value = "exploded"
+doc = "1 when it exploded"
+[[part]]
+says = "reads the exploded run without accounting for it"
+quote = "一"
+translation = "one"
+judges = "listing"
+rule = "stretch < 0.1"
+[[part]]
+says = "accounts for the explosion"
+quote = "二"
+translation = "two"
+judges = "listing"
+rule = "exploded_letter == 1 or stretch < 0.1"
+)toml";
+
+TEST(Evaluate, AnExplosionThePartDoesNotAccountForMakesItInconclusive) {
+  const fs::path dir = scratch("explodes");
+  std::ofstream(dir / "S9.2.toml") << kExplodes;
+  const Experiment ex = load_experiment(dir / "S9.2.toml");
+  EvaluateOptions options;
+  options.runs_dir = dir / "runs";
+  const ClaimResult r = evaluate_claim(ex, options);
+  ASSERT_EQ(r.runs[0].exploded, 1) << "the listing to the letter was expected to explode here";
+  EXPECT_EQ(r.parts[0].verdict, Verdict::Inconclusive);
+  EXPECT_NE(r.parts[0].reason.find("run letter exploded"), std::string::npos) << r.parts[0].reason;
+  EXPECT_EQ(r.parts[1].verdict, Verdict::Supported);
+  EXPECT_EQ(r.verdict, Verdict::Supported);
+  EXPECT_EQ(r.parts[1].judged_with[0], "letter (pbd-seed, the listing to the letter)");
+}
+
+// Timing: a group of two runs; a rule far from the interval is decided, one inside it is not.
+const char* kTimed = R"toml(id = "S9.3"
+section = "9.3"
+experiment = "costs"
+scenario = "free_fall"
+[set]
+"time.duration" = 0.05
+[[run]]
+name = "light"
+set = { "solver.name" = "xpbd", "solver.iterations" = 1 }
+[[run]]
+name = "heavy"
+scenario = "hanging_cloth"
+set = { "solver.name" = "xpbd", "solver.iterations" = 40, "scene.resolution" = [24, 24] }
+[[timing]]
+name = "cost"
+runs = ["light", "heavy"]
+repeats = 7
+[[measure]]
+name = "ratio"
+timing = "cost"
+value = "heavy / light"
+doc = "cost ratio"
+[[measure]]
+name = "ratio_2"
+value = "2 * ratio"
+doc = "twice"
+[[part]]
+says = "the cloth costs more"
+quote = "一"
+translation = "one"
+judges = "method"
+rule = "ratio_2 > 2"
+)toml";
+
+TEST(Evaluate, TimingGroupsGiveMediansWithIntervalsAndRulesReadThem) {
+  const fs::path dir = scratch("timed");
+  std::ofstream(dir / "S9.3.toml") << kTimed;
+  const Experiment ex = load_experiment(dir / "S9.3.toml");
+  EXPECT_TRUE(ex.timing_only(ex.runs[0]));
+  EvaluateOptions options;
+  options.runs_dir = dir / "runs";
+  const ClaimResult r = evaluate_claim(ex, options);
+  EXPECT_TRUE(r.runs[0].files.empty());  // timed only: no accuracy run made
+  ASSERT_EQ(r.timings.size(), 1u);
+  ASSERT_EQ(r.timings[0].seconds_per_step.size(), 7u);
+  const MeasureResult& ratio = r.measures[0];
+  EXPECT_TRUE(ratio.interval);
+  EXPECT_EQ(ratio.trials.size(), 7u);
+  EXPECT_LE(ratio.lo, ratio.value);
+  EXPECT_LE(ratio.value, ratio.hi);
+  EXPECT_NEAR(ratio.coverage, 1.0 - 2.0 / 128.0, 1e-12);  // n = 7: [min, max]
+  EXPECT_TRUE(r.measures[1].interval);
+  EXPECT_DOUBLE_EQ(r.measures[1].lo, 2 * ratio.lo);
+  EXPECT_DOUBLE_EQ(r.measures[1].hi, 2 * ratio.hi);
+  EXPECT_EQ(r.parts[0].verdict, Verdict::Supported) << r.parts[0].reason;
+  EXPECT_TRUE(r.parts[0].timing);
+  // The record is read back the second time.
+  const ClaimResult again = evaluate_claim(ex, options);
+  EXPECT_TRUE(again.timings[0].reused);
+  EXPECT_EQ(again.measures[0].value, ratio.value);
+
+  // A threshold inside the interval leaves the part inconclusive (decided from the same numbers).
+  ClaimResult measured = r;
+  measured.measures[1].lo = 3.0;
+  measured.measures[1].value = 4.0;
+  measured.measures[1].hi = 5.0;
+  PartSpec straddles = ex.parts[0];
+  straddles.rule = Expression("ratio_2 > 4.5");
+  const PartResult p = decide_part(ex, straddles, measured);
+  EXPECT_EQ(p.verdict, Verdict::Inconclusive);
+  EXPECT_NE(p.reason.find("straddles the threshold: ratio_2 in [3, 5]"), std::string::npos) << p.reason;
+  straddles.rule = Expression("ratio_2 > 2.5");
+  EXPECT_EQ(decide_part(ex, straddles, measured).verdict, Verdict::Supported);
+  straddles.rule = Expression("ratio_2 > 5.5");
+  EXPECT_EQ(decide_part(ex, straddles, measured).verdict, Verdict::Contradicted);
 }
 
 TEST(Evaluate, CombinesPartVerdicts) {
@@ -127,15 +304,25 @@ TEST(Evaluate, CombinesPartVerdicts) {
     return out;
   };
   EXPECT_EQ(combine_verdicts(parts({Verdict::Supported, Verdict::NotTestable})), Verdict::Supported);
-  EXPECT_EQ(combine_verdicts(parts({Verdict::Supported, Verdict::Contradicted})), Verdict::Contradicted);
+  EXPECT_EQ(combine_verdicts(parts({Verdict::Supported, Verdict::Contradicted})), Verdict::Mixed);
+  EXPECT_EQ(combine_verdicts(parts({Verdict::Contradicted, Verdict::Inconclusive})), Verdict::Contradicted);
+  EXPECT_EQ(combine_verdicts(parts({Verdict::Inconclusive, Verdict::NotTestable})), Verdict::Inconclusive);
   EXPECT_EQ(combine_verdicts(parts({Verdict::NotTestable})), Verdict::NotTestable);
+  EXPECT_EQ(combine_verdicts(parts({Verdict::Identity, Verdict::SetupUnknown})), Verdict::SetupUnknown);
+  std::vector<PartResult> beyond = parts({Verdict::Supported, Verdict::Contradicted});
+  beyond[1].beyond = true;  // beyond the regime: not in the verdict
+  EXPECT_EQ(combine_verdicts(beyond), Verdict::Supported);
   Verdict v;
   EXPECT_TRUE(parse_verdict("not testable", v));
   EXPECT_EQ(v, Verdict::NotTestable);
+  EXPECT_TRUE(parse_verdict("not reproduced", v));
+  EXPECT_EQ(v, Verdict::Contradicted);
+  EXPECT_TRUE(parse_verdict("inconclusive", v));
   EXPECT_FALSE(parse_verdict("maybe", v));
   EXPECT_STREQ(verdict_word(Verdict::Supported, ExperimentKind::Reproduction), "reproduced");
   EXPECT_STREQ(verdict_word(Verdict::Contradicted, ExperimentKind::Reproduction), "not reproduced");
   EXPECT_STREQ(verdict_word(Verdict::Contradicted, ExperimentKind::Claim), "contradicted");
+  EXPECT_STREQ(verdict_word(Verdict::SetupUnknown, ExperimentKind::Reproduction), "setup unknown");
 }
 
 }  // namespace

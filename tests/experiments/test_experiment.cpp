@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "experiments/claim_index.hpp"
 #include "experiments/experiment.hpp"
 
 namespace pbdbench::experiments {
@@ -13,7 +14,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The ids of the seed article's claims index (CLAIMS.md beside the article), in its order.
+// Claim ids in the order of the article's sections.
 const std::vector<std::string> kClaimIds = {
     "S1",   "S2.1a", "S2.1b", "S2.2", "S2.3a", "S2.3b", "S3.1", "S3.1a", "S3.1b", "S3.1c", "S3.2",
     "S3.3", "S3.4",  "S4.1",  "S4.2", "S4.3",  "S4.4",  "S4.5", "S5.1",  "S5.2",  "S5.3",  "S5.4"};
@@ -53,9 +54,16 @@ value = "2 * drop"
 doc = "twice that"
 [[part]]
 says = "it falls"
+quote = "它会落下"
+translation = "it falls"
+judges = "method"
 rule = "drop > 0"
 [[part]]
 says = "it flies"
+quote = "它会飞"
+translation = "it flies"
+judges = "method"
+regime = "beyond"
 untestable = "no wings"
 )toml";
 
@@ -75,14 +83,27 @@ std::string replace(std::string text, const std::string& from, const std::string
   return text;
 }
 
-TEST(Experiment, EveryClaimOfTheIndexHasAnExperimentThatLoads) {
-  const std::vector<Experiment> all = load_experiments(fs::path(PBDBENCH_SOURCE_DIR) / "claims" / "experiments");
+TEST(Experiment, EveryClaimOfTheIndexHasAnExperimentThatLoadsOrAReason) {
+  const fs::path dir = fs::path(PBDBENCH_SOURCE_DIR) / "claims" / "experiments";
+  const std::vector<Experiment> all = load_experiments(dir);
+  const ClaimIndex index = read_claim_index(claim_index_of(dir));
+  EXPECT_NO_THROW(check_coverage(index, all));
   std::vector<std::string> ids;
   for (const Experiment& e : all) ids.push_back(e.id);
-  EXPECT_EQ(ids, kClaimIds);  // in the index's order, none missing, none extra
+  EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end(), claim_id_less));
+  for (const std::string& id : kClaimIds) EXPECT_NE(index.find(id), nullptr) << id;
   for (const Experiment& e : all) {
     EXPECT_FALSE(e.parts.empty()) << e.id;
-    EXPECT_FALSE(e.claim.empty()) << e.id;
+    for (const PartSpec& p : e.parts) {
+      EXPECT_FALSE(p.quote.empty()) << e.id << ": " << p.says;
+      EXPECT_FALSE(p.translation.empty()) << e.id << ": " << p.says;
+      // The quote is the article's, verbatim: found in the index's original text of the claim
+      // or of another claim of the same section.
+    }
+  }
+  for (const IndexedClaim& c : index.claims) {
+    EXPECT_FALSE(c.original.empty()) << c.id;
+    EXPECT_FALSE(c.translation.empty()) << c.id;
   }
 }
 
@@ -92,6 +113,11 @@ TEST(Experiment, EveryReproductionLoadsAndSaysWhatItReproduces) {
   for (const Experiment& e : all) {
     EXPECT_EQ(e.kind, ExperimentKind::Reproduction) << e.id;
     EXPECT_FALSE(e.paper.empty()) << e.id;
+    EXPECT_FALSE(e.setup.empty()) << e.id;
+    for (const SetupSpec& s : e.setup) {
+      if (s.from == SetupFrom::Paper) EXPECT_FALSE(s.source.empty()) << e.id << ": " << s.what;
+      else EXPECT_FALSE(s.why.empty()) << e.id << ": " << s.what;
+    }
     for (const PartSpec& p : e.parts) {
       EXPECT_FALSE(p.published.empty()) << e.id << ": " << p.says;
       EXPECT_FALSE(p.source.empty()) << e.id << ": " << p.says;
@@ -117,7 +143,40 @@ TEST(Experiment, ReadsEveryPart) {
   EXPECT_TRUE(e.measures[1].run.empty());
   ASSERT_EQ(e.parts.size(), 2u);
   EXPECT_TRUE(e.parts[0].rule.has_value());
+  EXPECT_EQ(e.parts[0].quote, "它会落下");
+  EXPECT_EQ(e.parts[0].judges, Judges::Method);
+  EXPECT_FALSE(e.parts[0].beyond);
+  EXPECT_TRUE(e.parts[1].beyond);
   EXPECT_EQ(e.parts[1].untestable, "no wings");
+  EXPECT_EQ(e.measures_read(e.parts[0]), std::vector<std::string>{"drop"});
+  EXPECT_EQ(e.runs_read(e.measures[1]), std::vector<std::string>{"pbd"});
+}
+
+TEST(Experiment, TimingGroupsAndTheirMeasures) {
+  const std::string text = replace(kGood, "[[measure]]\nname = \"twice\"", R"toml([[timing]]
+name = "cost"
+runs = ["pbd"]
+repeats = 7
+set = { "time.duration" = 0.02 }
+[[measure]]
+name = "per_step"
+timing = "cost"
+value = "pbd * 1000"
+units = "ms"
+doc = "solver time per step"
+[[measure]]
+name = "twice")toml");
+  const Experiment e = load_experiment(write("S9.9", text));
+  ASSERT_EQ(e.timings.size(), 1u);
+  EXPECT_EQ(e.timings[0].repeats, 7);
+  const MeasureSpec* m = e.find_measure("per_step");
+  ASSERT_NE(m, nullptr);
+  EXPECT_TRUE(e.reads_timing(*m));
+  EXPECT_FALSE(e.reads_timing(*e.find_measure("drop")));
+  EXPECT_FALSE(e.timing_only(e.runs[0]));  // "drop" reads the run too
+  const auto o = e.timing_overrides(e.runs[0], e.timings[0], Tier::Full);
+  EXPECT_EQ(o.back().path, "time.duration");
+  EXPECT_EQ(o.back().value_text, "0.02");
 }
 
 TEST(Experiment, BadFilesAreRefusedNamingFileLineAndKey) {
@@ -137,6 +196,27 @@ TEST(Experiment, BadFilesAreRefusedNamingFileLineAndKey) {
       {"trials = 3\ntrial_key = \"solver.shuffle_seed\"", "trials = 3", "has trials but no trial_key"},
       {"untestable = \"no wings\"", "rule = \"drop > 0\"\nuntestable = \"no wings\"", "either a rule or an untestable reason"},
       {"id = \"S9.9\"", "id = \"S9.8\"", "does not match the file name"},
+      {"quote = \"它会落下\"\n", "", "part.quote: missing"},
+      {"judges = \"method\"\nrule", "judges = \"code\"\nrule", "part.judges: 'code' is not one of listing, method"},
+      {"regime = \"beyond\"", "regime = \"far\"", "part.regime: 'far' is not one of article, beyond"},
+      {"rule = \"drop > 0\"", "rule = \"drop > 0\"\nrequires = \"drop < 1\"", "part.requires_why: missing"},
+      {"rule = \"drop > 0\"", "rule = \"drop > 0\"\npublished = \"1 m\"", "part.published: unknown key"},
+      {"value = \"initial(potential_energy) - final(potential_energy)\"", "value = \"mean(wall_step)\"",
+       "a wall-clock series"},
+      {"value = \"initial(potential_energy) - final(potential_energy)\"", "value = \"wall_time\"",
+       "'wall_time' is a wall-clock time"},
+      {"[[measure]]\nname = \"twice\"", "[[timing]]\nname = \"t\"\nruns = [\"pbd\"]\nrepeats = 3\n[[measure]]\nname = \"twice\"",
+       "timing.repeats: 3 is below the minimum 7"},
+      {"[[measure]]\nname = \"twice\"", "[[timing]]\nname = \"t\"\nruns = [\"pdb\"]\n[[measure]]\nname = \"twice\"",
+       "timing.runs: no run named 'pdb'"},
+      {"[[measure]]\nname = \"twice\"",
+       "[[timing]]\nname = \"t\"\nruns = [\"pbd\"]\n[[measure]]\nname = \"c\"\ntiming = \"t\"\nvalue = \"xpbd\"\ndoc = \"d\"\n[[measure]]\nname = \"twice\"",
+       "'xpbd' is neither a run of timing group 't'"},
+      // One fault, one verdict: a part judging the method may not read the listing unrepaired.
+      {"set = { \"solver.name\" = \"pbd\" }", "set = { \"solver.name\" = \"pbd-seed\", \"solver.seed.fixes\" = [\"D1\", \"D3\"] }",
+       "judges the method but reads run 'pbd', the listing without the fixes D4, D5, D6, D7, D8, D9"},
+      {"set = { \"solver.name\" = \"pbd\" }", "set = { \"solver.name\" = \"pbd-seed\", \"solver.seed.fixes\" = [\"D1\", \"D3\", \"D4\", \"D5\", \"D6\", \"D7\", \"D8\", \"D9\"] }",
+       ""},
   };
   for (const Case& c : cases) {
     const std::string err = error_of(replace(kGood, c.from, c.to));

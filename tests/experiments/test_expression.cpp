@@ -87,6 +87,11 @@ TEST(Expression, ReductionsSkipTheInitialRowAndNaN) {
   EXPECT_DOUBLE_EQ(eval("max_from(e, 1.5)", s), 3.0);
   EXPECT_DOUBLE_EQ(eval("min_from(e, 0)", s), -5.0);
   EXPECT_TRUE(std::isnan(eval("mean_from(e, 10)", s)));  // no row in the window
+  // The last w seconds, whatever the run's length: time >= 4 - 1.5.
+  EXPECT_DOUBLE_EQ(eval("mean_last(e, 1.5)", s), -1.0);
+  EXPECT_DOUBLE_EQ(eval("max_last(e, 2.5)", s), 3.0);
+  EXPECT_DOUBLE_EQ(eval("min_last(e, 0.5)", s), -5.0);
+  EXPECT_DOUBLE_EQ(eval("maxabs_last(e, 4)", s), 5.0);
   EXPECT_DOUBLE_EQ(eval("final(e) / initial(e) + 1", s), 0.95);
 }
 
@@ -99,6 +104,7 @@ TEST(Expression, PeriodFromUpwardCrossings) {
   }
   EXPECT_NEAR(eval("period(x)", s), 0.7, 1e-3);
   EXPECT_NEAR(eval("period_from(x, 5)", s), 0.7, 1e-3);
+  EXPECT_NEAR(eval("period_last(x, 5)", s), 0.7, 1e-3);
   s.rows["flat"] = std::vector<double>(1001, 1.0);
   EXPECT_TRUE(std::isnan(eval("period(flat)", s)));
 }

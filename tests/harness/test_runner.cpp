@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "config/config.hpp"
+#include "core/cancel.hpp"
 #include "harness/runner.hpp"
 #include "runfile/run_file.hpp"
 #include "runfile/series.hpp"
@@ -314,4 +315,92 @@ TEST(Runner, RelaxationIsRefusedForSolversThatCacheTheModel) {
   } catch (const config::ConfigError& e) {
     EXPECT_EQ(e.key(), "relax.frames");
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Interrupts inside a step, results that become non-finite, plans beyond the machine.
+
+namespace {
+
+// A solver whose step 3 asks for a cancellation half-way (as a signal would) and then polls, as
+// the projection loops do; other steps move the particle like a free fall.
+class CancelsInStep3 final : public Solver {
+ public:
+  StepReport step(const Model&, State& state, double dt) override {
+    if (state.step + 1 == 3) {
+      state.x(0, 1) = -1e9;  // a half-done step: must never reach the file
+      request_cancel();
+      throw_if_cancelled("a test loop");
+    }
+    state.x(0, 1) -= dt;
+    state.time += dt;
+    state.step += 1;
+    return {};
+  }
+  std::string name() const override { return "cancels-in-step-3"; }
+};
+
+// A solver whose velocities become so large after step 2 that the kinetic energy overflows to
+// infinity, while every position, speed and extent stays finite and within the limits.
+class OverflowsEnergy final : public Solver {
+ public:
+  StepReport step(const Model&, State& state, double dt) override {
+    if (state.step + 1 >= 3) state.v(0, 0) = 1.3e154;  // v^2 = 1.7e308 is finite, 3 kg * v^2 / 2 is not
+    state.time += dt;
+    state.step += 1;
+    return {};
+  }
+  std::string name() const override { return "overflows-energy"; }
+};
+
+}  // namespace
+
+TEST(Runner, CancellationInsideAStepEndsTheRunIncompleteWithTheStepsBefore) {
+  clear_cancel();
+  const config::Config cfg = config::load_text(kFreeFall, "free_fall_test.toml");
+  const fs::path out = temp_file("cancelled.h5");
+  RunControl control;
+  control.make_solver = [](const SolverOptions&, const Model&) { return std::make_unique<CancelsInStep3>(); };
+  const RunOutcome r = run_config(cfg, out, control);
+  clear_cancel();
+  EXPECT_EQ(r.status, RunStatus::Incomplete);
+  EXPECT_EQ(r.steps_completed, 2);
+  EXPECT_NE(r.reason.find("interrupted during step 3"), std::string::npos) << r.reason;
+  EXPECT_NE(r.reason.find("a test loop"), std::string::npos) << r.reason;
+  const RunFileData d = read_run_file(out);
+  EXPECT_EQ(d.status(), "incomplete");
+  EXPECT_EQ(d.series.at("step").size(), 3u);  // rows 0, 1, 2
+  EXPECT_EQ(d.numbers.at("steps_completed"), 2);
+}
+
+TEST(Runner, ANonFiniteEnergyEndsTheRunAsExploded) {
+  const std::string text = std::string(kFreeFall) + "mass = 3.0\n[limits]\nmax_speed = 1e300\n";
+  const config::Config cfg = config::load_text(text, "free_fall_test.toml");
+  const fs::path out = temp_file("overflow.h5");
+  RunControl control;
+  control.make_solver = [](const SolverOptions&, const Model&) { return std::make_unique<OverflowsEnergy>(); };
+  const RunOutcome r = run_config(cfg, out, control);
+  EXPECT_EQ(r.status, RunStatus::Exploded);
+  EXPECT_EQ(r.exploded_step, 3);
+  EXPECT_NE(r.reason.find("kinetic energy"), std::string::npos) << r.reason;
+  EXPECT_EQ(read_run_file(out, false).status(), "exploded");
+}
+
+TEST(Runner, APlanBeyondTheMachineIsRefusedBeforeAnyFileUnlessForced) {
+  // 10^5 links and 10^5 iterations: about 10^12 projections a step.
+  const config::Config cfg = config::load_text(
+      "[scene]\nkind = \"chain\"\nlinks = 100000\n[solver]\niterations = 100000\n[time]\nduration = 2.0\n",
+      "huge.toml");
+  const fs::path out = temp_file("huge.h5");
+  fs::remove(out);
+  try {
+    run_config(cfg, out);
+    ADD_FAILURE() << "the plan was not refused";
+  } catch (const config::ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("does not fit this machine"), std::string::npos) << what;
+    EXPECT_NE(what.find("more than a day"), std::string::npos) << what;
+    EXPECT_NE(what.find("--force"), std::string::npos) << what;
+  }
+  EXPECT_FALSE(fs::exists(out));
 }

@@ -303,7 +303,8 @@ TEST(runfile_file, RoundTrip) {
     EXPECT_EQ(H5Tget_class(type.id), H5T_INTEGER);
     EXPECT_EQ(H5Tget_size(type.id), 1u) << "constraint_kind is int8";
     EXPECT_EQ(string_list_attr(ds.id, "kind_names"),
-              (std::vector<std::string>{"distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic"}));
+              (std::vector<std::string>{"distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic",
+                                        "fem_strain_triangle", "fem_strain_tet"}));
   }
   EXPECT_EQ(read_all<int>(f.id, "/model/constraint_kind", H5T_NATIVE_INT),
             (std::vector<int>{0, 0, 0, 0, 0, 0, 1, 2}));

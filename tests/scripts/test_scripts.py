@@ -91,7 +91,8 @@ class LoaderTest(unittest.TestCase):
         self.assertEqual(run.frames.shape, (4, 4, 3))
         self.assertEqual(run.model["group_names"], ["stretch", "volume", "bending"])
         self.assertEqual(run.model["constraint_kind_names"],
-                         ["distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic"])
+                         ["distance", "volume", "bending", "fem_deviatoric", "fem_hydrostatic",
+                          "fem_strain_triangle", "fem_strain_tet"])
         self.assertEqual(run.model["rest_positions"].shape, (4, 3))
         self.assertEqual(list(run.model["constraint_kind"]), [0] * 6 + [1, 2])
         light = runfile.load(path, frames=False, model=False)

@@ -118,7 +118,9 @@ double compare_paths(const Case& c, SolverOptions o, double tolerance) {
     EXPECT_EQ(rb.contacts, ra.contacts);
     // In float the bending's validity test (sin^2 theta >= 1e-12) meets float round-off near
     // flat, where the two paths may decide differently.
-    if (o.precision == Precision::Double) EXPECT_EQ(rb.skipped, ra.skipped) << c.name << " step " << n;
+    if (o.precision == Precision::Double) {
+      EXPECT_EQ(rb.skipped, ra.skipped) << c.name << " step " << n;
+    }
     s = a;
   }
   return worst;

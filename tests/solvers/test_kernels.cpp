@@ -35,6 +35,8 @@ Config random_config(Random& rng, ConstraintKind kind) {
     case ConstraintKind::Bending:
     case ConstraintKind::FemDeviatoric:  // the kernels see FEM constraints only through their
     case ConstraintKind::FemHydrostatic:  // ConstraintEval: a bending one stands for them here
+    case ConstraintKind::FemStrainTriangle:  // (the strain kinds are block updates of their own,
+    case ConstraintKind::FemStrainTet:       // tested in tests/core/test_fem_constraints.cpp)
       c.e = eval_bending(c.x[0], c.x[1], c.x[2], c.x[3], rng.uniform(0.5, 3.0));
       break;
   }

@@ -1,0 +1,60 @@
+// Costs measured like a benchmark. The runs of a [[timing]] group (experiments/experiment.hpp) are
+// timed together in this process: one warm-up repeat, then `repeats` repeats, each running every
+// run of the group once, in an order rotated from repeat to repeat (interleaved, so that a machine
+// that slows down or speeds up weighs on every run alike). Each run's cost in a repeat is its
+// solver time per step (RunOutcome::solver_time / steps, s): the solver's step, not the metrics or
+// the output. A measure of the group evaluates its expression once per repeat; its value is the
+// median over the repeats, with a distribution-free 95 % interval for the median.
+//
+// The samples are kept in <runs>/<experiment>/timing-<group>.toml with the machine, the build and
+// the configurations timed; a record from the same build with the same configurations is read
+// instead of timed again (unless forced), so a shard's timings merge like its run files.
+#pragma once
+
+#include <filesystem>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "experiments/experiment.hpp"
+
+namespace pbdbench::experiments {
+
+// An interval for the median of n samples from order statistics: [x_(k), x_(n+1-k)] (1-based, the
+// samples sorted) with the largest k such that P(Binomial(n, 1/2) < k) <= 0.025, so that it holds
+// the median with probability `coverage` >= 0.95 whatever the distribution. With n < 6 no such k
+// exists: the interval is the whole range and the coverage 1 - 2^(1-n).
+struct MedianInterval {
+  double median = 0.0;
+  double lo = 0.0;
+  double hi = 0.0;
+  double coverage = 0.0;  // the interval's exact coverage probability
+};
+MedianInterval median_interval(std::vector<double> samples);
+
+struct TimingResult {
+  std::string group;
+  std::vector<std::string> runs;                     // the group's runs, in the file's order
+  std::vector<std::vector<double>> seconds_per_step;  // [repeat][run]: solver time per step (s)
+  std::vector<std::string> status;                   // per run: complete, or the first other status
+  std::string machine;
+  std::string build;
+  bool reused = false;     // read from a current record, not timed now
+  double wall_time = 0.0;  // s spent timing now
+  std::filesystem::path record;
+};
+
+// Where a group's record lives.
+std::filesystem::path timing_record_path(const std::filesystem::path& runs_dir, const std::string& experiment,
+                                         const std::string& group);
+
+// Whether the record holds the group's configurations in this tier from this build.
+bool timing_is_current(const Experiment& experiment, const TimingSpec& timing, Tier tier,
+                       const std::filesystem::path& runs_dir);
+
+// Times the group (or reads its current record) and writes the record. The timed runs' files go to
+// <runs>/<experiment>/timing/<group>/ and are overwritten from repeat to repeat.
+TimingResult time_group(const Experiment& experiment, const TimingSpec& timing, Tier tier,
+                        const std::filesystem::path& runs_dir, bool force, std::ostream* log);
+
+}  // namespace pbdbench::experiments

@@ -1,0 +1,146 @@
+#include "harness/plan.hpp"
+
+#include <sys/statvfs.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <tuple>
+
+#include <fmt/format.h>
+
+#include "runfile/series.hpp"
+
+namespace pbdbench {
+
+namespace {
+
+// Costs (measured on the development machine, 2-core AMD EPYC, Release, while loaded; see
+// results/README.md, "The planned run"), rounded up: they are for refusing the impossible, not
+// for predictions.
+constexpr double kProjectionSeconds = 2e-7;   // one constraint or contact projected once
+constexpr double kParticleSeconds = 1e-6;     // one particle, one step: prediction, metrics
+constexpr double kRowSeconds = 1e-4;          // one row: metrics and the writer
+constexpr double kReferenceSeconds = 2e-4;    // one constraint or particle, one reference step
+constexpr double kParticleBytes = 2048;       // state, work arrays, metrics, per particle
+constexpr double kConstraintBytes = 512;      // constraint, ordering, multipliers
+constexpr double kContactBytes = 256;
+constexpr double kReferenceBytes = 16384;     // per constraint or particle: sparse factors
+constexpr double kBaseBytes = 96.0 * 1024 * 1024;  // the program, HDF5's caches, buffered rows
+constexpr double kMaxSeconds = 24 * 3600.0;
+
+bool is_reference(const std::string& solver) {
+  return solver.rfind("ref-", 0) == 0 || solver.rfind("global-", 0) == 0;
+}
+
+// Particle pairs closer than the sum of their radii at the start, counted with a grid (no list).
+long overlapping_pairs(const Model& model) {
+  const int n = model.particle_count();
+  double rmax = 0.0;
+  for (double r : model.radius) rmax = std::max(rmax, r);
+  if (n < 2 || !(rmax > 0.0)) return 0;
+  const double cell = 2.0 * rmax;
+  std::map<std::tuple<long, long, long>, std::vector<int>> cells;
+  auto index = [&](double v) { return static_cast<long>(std::floor(v / cell)); };
+  for (int p = 0; p < n; ++p) {
+    const auto x = model.rest_positions.row(p);
+    if (!x.allFinite()) continue;
+    cells[{index(x(0)), index(x(1)), index(x(2))}].push_back(p);
+  }
+  long pairs = 0;
+  for (const auto& [key, members] : cells)
+    for (long di = -1; di <= 1; ++di)
+      for (long dj = -1; dj <= 1; ++dj)
+        for (long dk = -1; dk <= 1; ++dk) {
+          auto it = cells.find({std::get<0>(key) + di, std::get<1>(key) + dj, std::get<2>(key) + dk});
+          if (it == cells.end()) continue;
+          for (int a : members)
+            for (int b : it->second) {
+              if (b <= a) continue;
+              const double d = (model.rest_positions.row(a) - model.rest_positions.row(b)).norm();
+              if (d < model.radius[static_cast<size_t>(a)] + model.radius[static_cast<size_t>(b)]) ++pairs;
+              if (pairs > 64L * n) return pairs;  // collapsed: counting further only costs time
+            }
+        }
+  return pairs;
+}
+
+double available_memory() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  double kb = 0.0;
+  std::string unit;
+  while (in >> key >> kb >> unit)
+    if (key == "MemAvailable:") return kb * 1024.0;
+  return 0.0;  // unknown
+}
+
+std::string bytes(double b) {
+  if (b >= 1e9) return fmt::format("{:.3g} GB", b / 1e9);
+  if (b >= 1e6) return fmt::format("{:.3g} MB", b / 1e6);
+  return fmt::format("{:.3g} kB", b / 1e3);
+}
+
+std::string duration(double s) {
+  if (s >= 86400) return fmt::format("{:.3g} days", s / 86400);
+  if (s >= 3600) return fmt::format("{:.3g} h", s / 3600);
+  if (s >= 60) return fmt::format("{:.3g} min", s / 60);
+  return fmt::format("{:.2g} s", s);
+}
+
+}  // namespace
+
+RunPlan plan_run(const Model& model, const SolverOptions& solver, const config::RunOptions& run) {
+  RunPlan plan;
+  plan.steps = run.steps();
+  plan.frames = plan.steps / std::max(run.frame_every, 1) + 2;
+  plan.contact_pairs = overlapping_pairs(model);
+  const double n = model.particle_count();
+  const double m = static_cast<double>(model.constraints.size());
+  const double contacts = static_cast<double>(plan.contact_pairs) + n * static_cast<double>(model.planes.size() + model.spheres.size());
+  const double steps = static_cast<double>(plan.steps);
+  size_t columns = 0;
+  for (const SeriesSpec& s : series_table()) columns += static_cast<size_t>(s.width);
+  columns += 2 * model.group_names.size();
+  plan.file_bytes = (steps + 1) * static_cast<double>(columns) * 8.0 + static_cast<double>(plan.frames) * n * 24.0;
+  const double sweeps = std::max(1, solver.substeps) * std::max(1, solver.iterations);
+  if (is_reference(solver.name)) {
+    plan.seconds = steps * ((m + n) * kReferenceSeconds + kRowSeconds);
+    plan.memory_bytes = kBaseBytes + (m + n) * kReferenceBytes + contacts * kContactBytes;
+  } else {
+    plan.seconds = steps * (sweeps * (m + contacts) * kProjectionSeconds + n * kParticleSeconds + kRowSeconds);
+    plan.memory_bytes = kBaseBytes + n * kParticleBytes + m * kConstraintBytes + contacts * kContactBytes;
+  }
+  return plan;
+}
+
+std::string plan_problems(const RunPlan& plan, const std::filesystem::path& out) {
+  std::vector<std::string> problems;
+  const double memory = available_memory();
+  if (memory > 0.0 && plan.memory_bytes > memory)
+    problems.push_back(fmt::format("about {} of memory, and {} is available", bytes(plan.memory_bytes), bytes(memory)));
+  const std::filesystem::path dir = out.has_parent_path() ? out.parent_path() : std::filesystem::path(".");
+  struct statvfs fs {};
+  if (::statvfs(dir.c_str(), &fs) == 0) {
+    const double free = static_cast<double>(fs.f_bavail) * static_cast<double>(fs.f_frsize);
+    // The run file and its working copy (runfile/shadow_file.hpp).
+    if (2.0 * plan.file_bytes > free)
+      problems.push_back(fmt::format("a run file of up to {} (twice that while it runs), and {} is free in {}",
+                                     bytes(plan.file_bytes), bytes(free), dir.string()));
+  }
+  if (plan.seconds > kMaxSeconds)
+    problems.push_back(fmt::format("about {} of wall time, more than a day", duration(plan.seconds)));
+  std::string text;
+  for (size_t i = 0; i < problems.size(); ++i) text += (i ? "; " : "") + problems[i];
+  return text;
+}
+
+std::string describe_plan(const RunPlan& plan) {
+  return fmt::format("{} steps, about {} and {} of memory, a run file of up to {}", plan.steps,
+                     duration(plan.seconds), bytes(plan.memory_bytes), bytes(plan.file_bytes));
+}
+
+}  // namespace pbdbench

@@ -1,0 +1,37 @@
+// The planned run, estimated before it starts: steps, rows, the run file's size, the memory and
+// the time it will take, and whether this machine can take it.
+//
+// The estimates are orders of magnitude, not predictions: costs per constraint projection and per
+// particle measured on the development machine (plan.cpp), the largest data structures counted
+// from the model. They exist to refuse up front what would exhaust the memory or the disk, or
+// run for days, instead of finding out hours later; --force runs it anyway.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "config/config.hpp"
+#include "core/model.hpp"
+#include "solvers/options.hpp"
+
+namespace pbdbench {
+
+struct RunPlan {
+  long steps = 0;
+  long frames = 0;
+  double file_bytes = 0.0;    // the run file at the end (frames uncompressed: an upper bound)
+  double memory_bytes = 0.0;  // resident memory of the run
+  double seconds = 0.0;       // wall time
+  long contact_pairs = 0;     // particle pairs overlapping (within the contact margin) at the start
+};
+
+RunPlan plan_run(const Model& model, const SolverOptions& solver, const config::RunOptions& run);
+
+// "" when the plan fits this machine (memory available, free space at `out`'s folder, at most a
+// day of wall time), else why not, with the numbers.
+std::string plan_problems(const RunPlan& plan, const std::filesystem::path& out);
+
+// "12,000 steps, about 3 min, 1.2 GB of memory, a 40 MB file".
+std::string describe_plan(const RunPlan& plan);
+
+}  // namespace pbdbench

@@ -1,0 +1,47 @@
+// A run file written through a shadow copy: the HDF5 library writes in place, but never into the
+// file readers see.
+//
+//   <path>          the published file: a complete HDF5 image as of the last publish(), never
+//                   written to again once published
+//   <path>.shadow   the working copy the library reads and writes (an HDF5 file driver of our
+//                   own, ShadowDriver, sends every read and write to it and remembers which byte
+//                   ranges were written since the last publish)
+//
+// publish() makes the working copy the published file with one atomic rename(), after giving
+// the previously published file a second name, and then brings that previous file up to date
+// by copying into it only the byte ranges written since: it becomes the next working copy.
+// So at every moment <path> is a complete image (the previous or the new one), a publish
+// writes about twice the bytes the library wrote since the last one (never the whole file),
+// and nothing is kept in memory but the list of those ranges. The cost: two copies of the file
+// on disk while the run goes; finish removes the shadow. A filesystem without hard links falls
+// back to copying the whole file at each publish (then the free space a publish needs is the
+// file's size).
+#pragma once
+
+#include <hdf5.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace pbdbench {
+
+// The HDF5 file driver id (registered on first use). A file access property list with this
+// driver: H5Pset_driver(fapl, shadow_driver(), nullptr).
+hid_t shadow_driver();
+
+// The working copy's path for a published path: "<path>.shadow".
+std::filesystem::path shadow_path(const std::filesystem::path& published);
+
+struct PublishStats {
+  std::uint64_t bytes_copied = 0;  // bytes written into the next working copy by this publish
+  bool full_copy = false;          // the whole file was copied (first publish, or no hard links)
+};
+
+// Publishes the file `file` (opened with shadow_driver() at shadow_path(published)) at
+// `published`; H5Fflush it first. With `durable`, the image and the rename are synced to disk.
+// Throws std::runtime_error naming the path on failure; the published file is then the
+// previous image.
+PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, bool durable);
+
+}  // namespace pbdbench

@@ -1,0 +1,184 @@
+// Tests of runfile/output_guard and runfile/shadow_file: what a run file may replace (by content),
+// one writer per path (the lock names its holder, is released, and is taken over from a dead
+// holder), and a publish that writes what changed, not the whole file.
+#include "runfile/output_guard.hpp"
+
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "runfile/run_file.hpp"
+#include "runfile/shadow_file.hpp"
+#include "tests/runfile/fixture_model.hpp"
+
+namespace pbdbench {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::path(PBDBENCH_BINARY_DIR) / "tests" / "runfile" / "tmp" /
+                       (std::string(info->test_suite_name()) + "." + info->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+RunHeader header(const fs::path& scenario = "scenarios/fixture.toml") {
+  RunHeader h;
+  h.scenario = "fixture";
+  h.scenario_file = scenario.string();
+  h.solver = "xpbd";
+  h.config = test::fixture_config("xpbd", 10, 2);
+  h.dt = 0.01;
+  h.steps_planned = 100;
+  return h;
+}
+
+void append_rows(RunFileWriter& w, const Model& m, long first, long rows) {
+  for (long r = first; r < first + rows; ++r) {
+    const Sample s = test::fixture_sample(r, m.group_names.size());
+    const StepReport rep = test::fixture_report(r);
+    w.append(SeriesRow{0.01 * static_cast<double>(r), r, 0.0, &s, &rep});
+  }
+}
+
+std::string read_all(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+std::string refusal(const fs::path& path, const fs::path& scenario = {}) {
+  try {
+    check_output_path(path, scenario);
+  } catch (const OutputRefused& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(OutputGuard, OnlyARunFileMayBeReplaced) {
+  const fs::path dir = temp_dir();
+  EXPECT_EQ(refusal(dir / "absent.h5"), "");
+
+  std::ofstream(dir / "notes.h5") << "not HDF5\n";
+  EXPECT_NE(refusal(dir / "notes.h5").find("is not a pbdbench run file"), std::string::npos);
+  std::ofstream(dir / "empty.h5");
+  EXPECT_NE(refusal(dir / "empty.h5").find("is not a pbdbench run file"), std::string::npos);
+  EXPECT_NE(refusal(dir).find("is a directory"), std::string::npos);
+  EXPECT_NE(refusal("/dev/null").find("character device"), std::string::npos);
+  ASSERT_EQ(::mkfifo((dir / "pipe").c_str(), 0644), 0);
+  EXPECT_NE(refusal(dir / "pipe").find("named pipe"), std::string::npos);
+
+  const Model m = test::fixture_model();
+  {
+    RunFileWriter w(dir / "run.h5", header(), m);
+    w.finish(RunStatus::Complete, "", 0, 0.0);
+  }
+  EXPECT_TRUE(is_run_file(dir / "run.h5"));
+  EXPECT_EQ(refusal(dir / "run.h5"), "");
+  fs::create_symlink(dir / "run.h5", dir / "link.h5");
+  EXPECT_NE(refusal(dir / "link.h5").find("symbolic link"), std::string::npos);
+  // The scenario file itself, whatever it holds (here even a run file).
+  EXPECT_NE(refusal(dir / "run.h5", dir / "run.h5").find("scenario file itself"), std::string::npos);
+
+  // The writer refuses the same, and leaves the file as it was.
+  const std::string before = read_all(dir / "notes.h5");
+  EXPECT_THROW(RunFileWriter(dir / "notes.h5", header(), m), OutputRefused);
+  EXPECT_EQ(read_all(dir / "notes.h5"), before);
+  EXPECT_FALSE(fs::exists(dir / "notes.h5.lock"));
+}
+
+TEST(OutputGuard, OneWriterPerPathNamingTheHolder) {
+  const fs::path dir = temp_dir();
+  const fs::path path = dir / "run.h5";
+  const Model m = test::fixture_model();
+  {
+    RunFileWriter first(path, header(), m);
+    EXPECT_TRUE(fs::exists(lock_path(path)));
+    const auto holder = output_holder(path);
+    ASSERT_TRUE(holder.has_value());
+    EXPECT_NE(holder->find("pid " + std::to_string(::getpid())), std::string::npos) << *holder;
+    try {
+      RunFileWriter second(path, header(), m);
+      ADD_FAILURE() << "a second writer of " << path;
+    } catch (const OutputRefused& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("pid " + std::to_string(::getpid())), std::string::npos) << what;
+      EXPECT_NE(what.find("on host "), std::string::npos) << what;
+    }
+    first.finish(RunStatus::Complete, "", 0, 0.0);
+    EXPECT_FALSE(output_holder(path).has_value());  // released at finish
+  }
+  EXPECT_FALSE(fs::exists(lock_path(path)));
+  EXPECT_FALSE(fs::exists(shadow_path(path)));
+}
+
+// A holder that dies without cleaning up leaves its lock file; the kernel released the lock.
+TEST(OutputGuard, TheLockOfADeadHolderIsTakenOver) {
+  const fs::path dir = temp_dir();
+  const fs::path path = dir / "run.h5";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    OutputLock* lock = new OutputLock(path);  // never released: the process ends
+    (void)lock;
+    _exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(fs::exists(lock_path(path)));
+  EXPECT_FALSE(output_holder(path).has_value());
+  OutputLock again(path);
+  EXPECT_TRUE(output_holder(path).has_value());
+}
+
+TEST(OutputGuard, AFileInTheWayOfTheLockIsNotOverwritten) {
+  const fs::path dir = temp_dir();
+  const fs::path path = dir / "run.h5";
+  std::ofstream(lock_path(path)) << "my own file named run.h5.lock\n";
+  EXPECT_THROW(OutputLock lock(path), OutputRefused);
+  EXPECT_EQ(read_all(lock_path(path)), "my own file named run.h5.lock\n");
+}
+
+// A publish writes what changed since the previous one (twice: the library's writes into the
+// working copy, then the copy into the previous image), not the whole file.
+TEST(ShadowFile, APublishCopiesOnlyWhatChanged) {
+  const fs::path dir = temp_dir();
+  const fs::path path = dir / "run.h5";
+  const Model m = test::fixture_model();
+  RunFileWriter w(path, header(), m, 1e9);
+  append_rows(w, m, 0, 50000);
+  w.flush();
+  const auto big = fs::file_size(path);
+  ASSERT_GT(big, 10u << 20);
+  // /proc/self/io: wchar counts the bytes this process passed to write calls.
+  auto written = [] {
+    std::ifstream io("/proc/self/io");
+    std::string key;
+    unsigned long long value = 0;
+    while (io >> key >> value)
+      if (key == "wchar:") return value;
+    return 0ull;
+  };
+  const auto before = written();
+  append_rows(w, m, 50000, 10);
+  w.flush();
+  const auto cost = written() - before;
+  EXPECT_LT(cost, big / 20) << "a flush of 10 rows wrote " << cost << " bytes of a " << big << "-byte file";
+  EXPECT_TRUE(fs::exists(shadow_path(path)));
+  EXPECT_EQ(fs::file_size(shadow_path(path)), fs::file_size(path));
+  EXPECT_EQ(read_all(shadow_path(path)), read_all(path));  // the next working copy is up to date
+  w.finish(RunStatus::Complete, "", 50009, 1.0);
+  EXPECT_FALSE(fs::exists(shadow_path(path)));
+  EXPECT_EQ(read_run_file(path).series.at("time").size(), 50010u);
+}
+
+}  // namespace
+}  // namespace pbdbench
