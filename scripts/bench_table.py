@@ -33,8 +33,8 @@ def main(argv):
             continue
         runs.setdefault(b["run_name"], []).append(b)
     print()
-    print("| benchmark | reps | M projections/s: median [min, max] | step ms: median | other |")
-    print("|---|---|---|---|---|")
+    print("| benchmark | reps | M projections/s (wall): median [min, max] | M projections/s (CPU, 1 thread): median [min, max] | step ms: median | other |")
+    print("|---|---|---|---|---|---|")
     for name, reps in runs.items():
         def stat(key):
             xs = [r[key] for r in reps if key in r]
@@ -42,15 +42,17 @@ def main(argv):
                 return None
             return statistics.median(xs), min(xs), max(xs)
         mp = stat("Mproj_per_s")
+        mc = stat("Mproj_per_cpu_s")
         step = stat("step_ms")
         other = []
         for key in ("overhead_pct", "run_s"):
             s = stat(key)
             if s:
                 other.append("%s %.3g [%.3g, %.3g]" % (key, *s))
-        print("| %s | %d | %s | %s | %s |" % (
-            name, len(reps),
+        print("| %s | %d | %s | %s | %s | %s |" % (
+            name.replace("/real_time", "").replace("/iterations:1", ""), len(reps),
             "%.1f [%.1f, %.1f]" % mp if mp else "",
+            "%.1f [%.1f, %.1f]" % mc if mc else "",
             "%.3f" % step[0] if step else "",
             "; ".join(other)))
     return 0

@@ -9,6 +9,7 @@ PACKAGES=(
   libtomlplusplus-dev libcli11-dev libfmt-dev libgtest-dev libbenchmark-dev nlohmann-json3-dev
   python3-matplotlib python3-h5py python3-numpy
   clang-14 libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer and the sanitizers
+  libomp-14-dev                # scripts/fuzz.sh: OpenMP for clang (solvers/: g++ has its libgomp)
 )
 
 missing=()
