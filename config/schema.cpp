@@ -498,9 +498,9 @@ const std::vector<KeySpec>& common_keys() {
              "float32, positions, velocities, predictions and multipliers stored in float32; "
              "docs/solvers.md); pbd-seed is float by its departure D10"),
         integer("solver.threads", so.threads, within(0, 1024),
-                "threads of the projection sweeps (pbd, xpbd; the results are the same bits at "
-                "any count) and of the references' sparse factorisations; 0: the cores the run "
-                "may use (one under sweep --jobs > 1)"),
+                "pbd, xpbd: threads of the colored and Jacobi sweeps (the results are the same "
+                "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
+                "1 by default (docs/performance.md)"),
         boolean("solver.pbd.stiffness_correction", so.pbd_stiffness_correction,
                 "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"),
         real("solver.pbd.velocity_damping", so.pbd_velocity_damping, "1", within(0, 1),

@@ -406,7 +406,7 @@ class Program final : public CompiledProjection {
     for (const Group& g : groups_) total += g.items;
     parallel_ = threads_ > 1 && !per_item_ && !groups_.empty() &&
                 total / static_cast<int>(groups_.size()) >= kParallelGroup;
-    if (order_ == ProjectionOrder::Jacobi) parallel_ = threads_ > 1;
+    if (order_ == ProjectionOrder::Jacobi) parallel_ = threads_ > 1 && total >= kParallelGroup;
   }
 
   // Jacobi: the buffer offsets of each kind, and for each moving particle the buffer entries of

@@ -82,9 +82,11 @@ struct SolverOptions {
                                     // "float" (the projections computed in float32, the state
                                     // stored as float32); pbd-seed is float by its D10, the
                                     // others ignore it
-  int threads = 0;                  // solver.threads: threads of the projection sweeps (pbd,
-                                    // xpbd) and of the references' sparse factorisations; 0 =
-                                    // the cores this process may run on (available_cores())
+  int threads = 1;                  // solver.threads: threads of the colored and Jacobi sweeps
+                                    // (pbd, xpbd); 0 = the cores this process may run on
+                                    // (available_cores(): its share under sweep --jobs). 1 by
+                                    // default: on the shared 2-core machines measured, 2
+                                    // threads were slower (docs/performance.md)
 
   // [solver.pbd]: Mueller et al. 2007.
   bool pbd_stiffness_correction = false;  // solver.pbd.stiffness_correction: k' = 1-(1-k)^(1/n)
