@@ -137,11 +137,14 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   control.force = force;
   control.notice = [](const std::string& text) { std::cerr << "pbdbench: " << text << "\n"; };
   const RunOutcome r = run_config(cfg, out, control);
-  const char* status = to_string(r.status);
+  std::string status = to_string(r.status);
+  if (!r.warnings.empty())
+    status += fmt::format(" with {} warning{}", r.warnings.size(), r.warnings.size() == 1 ? "" : "s");
   std::cout << fmt::format("{} [{}]: {} after {}/{} steps in {:.2f} s ({:.2f} s in the solver) -> {}\n",
                            cfg.scenario_name, solver_name, status, r.steps_completed, r.steps_planned,
                            r.wall_time, r.solver_time, out.string());
   if (!r.reason.empty()) std::cout << "  " << r.reason << "\n";
+  for (const std::string& w : r.warnings) std::cout << "  WARNING " << w << "\n";
   if (!quiet) std::cout << summary_table({{cfg.scenario_name + " " + solver_name, out}});
   switch (r.status) {
     case RunStatus::Complete: return kExitOk;

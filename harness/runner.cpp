@@ -10,6 +10,7 @@
 #include "core/cancel.hpp"
 #include "harness/plan.hpp"
 #include "harness/relax.hpp"
+#include "metrics/health.hpp"
 #include "metrics/shadow.hpp"
 #include "solvers/solver.hpp"
 
@@ -120,6 +121,18 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   header.steps_planned = outcome.steps_planned;
   RunFileWriter writer(out, header, model);
 
+  // Warnings (metrics/health.hpp). Energy comes in through moving kinematic particles or
+  // colliders and through relaxing rest values: the energy check is off in such scenes.
+  bool energy_sources = relax_frames > 0;
+  for (const Attachment& a : model.attachments) energy_sources = energy_sources || a.motion >= 0;
+  for (const SphereCollider& sp : model.spheres) energy_sources = energy_sources || sp.motion >= 0;
+  HealthMonitor health(model, state, sample, outcome.steps_planned, energy_sources);
+  // Every way out records the warnings seen so far.
+  auto record_warnings = [&] {
+    for (const RunWarning& w : health.warnings()) outcome.warnings.push_back(w.line());
+    writer.set_warnings(outcome.warnings);
+  };
+
   const StepReport initial_report;
   writer.append({state.time, state.step, 0.0, &sample, &initial_report});
   writer.append_frame(state.time, state.x);
@@ -158,6 +171,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       }
       writer.append({state.time, state.step, wall, &sample, &report, &shadow_sample});
       outcome.steps_completed = k;
+      health.observe(k, state, sample);
       std::string why = explosion_reason(model, state, sample, run.limits, baseline);
       if (why.empty()) why = non_finite(sample);
       if (!why.empty()) {
@@ -167,6 +181,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
         outcome.exploded_step = k;
         outcome.final_sample = sample;
         outcome.wall_time = seconds_since(t_start);
+        record_warnings();
         writer.finish(RunStatus::Exploded, why, k, outcome.wall_time, k, state.time);
         return outcome;
       }
@@ -180,6 +195,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
         outcome.reason = "interrupted after step " + std::to_string(k);
         outcome.final_sample = sample;
         outcome.wall_time = seconds_since(t_start);
+        record_warnings();
         writer.finish(RunStatus::Incomplete, outcome.reason, k, outcome.wall_time);
         return outcome;
       }
@@ -193,6 +209,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
                        (dynamic_cast<const Cancelled*>(&e) != nullptr ? std::string(" (") + e.what() + ")" : "");
       outcome.final_sample = sample;
       outcome.wall_time = seconds_since(t_start);
+      record_warnings();
       writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
       return outcome;
     }
@@ -200,12 +217,14 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
     outcome.reason = e.what();
     outcome.final_sample = sample;
     outcome.wall_time = seconds_since(t_start);
+    record_warnings();
     writer.finish(RunStatus::Failed, outcome.reason, outcome.steps_completed, outcome.wall_time);
     return outcome;
   }
   outcome.status = RunStatus::Complete;
   outcome.final_sample = sample;
   outcome.wall_time = seconds_since(t_start);
+  record_warnings();
   writer.finish(RunStatus::Complete, "", outcome.steps_completed, outcome.wall_time);
   return outcome;
 }

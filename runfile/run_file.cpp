@@ -56,6 +56,20 @@ std::string RunFileData::status() const {
   return it == attributes.end() ? std::string() : it->second;
 }
 
+std::vector<std::string> RunFileData::warnings() const {
+  std::vector<std::string> out;
+  auto it = attributes.find("warnings");
+  if (it == attributes.end()) return out;
+  size_t start = 0;
+  while (start < it->second.size()) {
+    size_t end = it->second.find('\n', start);
+    if (end == std::string::npos) end = it->second.size();
+    if (end > start) out.push_back(it->second.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -418,6 +432,8 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
     set_attr(file, "dt", header.dt);
     set_attr(file, "steps_planned", static_cast<long long>(header.steps_planned));
     set_attr(file, "steps_completed", 0LL);
+    set_attr(file, "warnings", std::string());
+    set_attr(file, "warning_count", 0LL);
     set_attr(file, "wall_time", 0.0);
     set_attr(file, "exploded_step", -1LL);
     set_attr(file, "exploded_time", -1.0);
@@ -566,6 +582,20 @@ void RunFileWriter::flush() {
     w.publish(false);
   } catch (const H5::Exception& e) {
     fail(w.path, "cannot flush: " + h5_message(e));
+  }
+}
+
+void RunFileWriter::set_warnings(const std::vector<std::string>& lines) {
+  Impl& w = *impl_;
+  if (w.closed) throw std::logic_error("run file " + w.path.string() + ": set_warnings() after finish()");
+  std::string text;
+  for (const std::string& l : lines) text += (text.empty() ? "" : "\n") + l;
+  try {
+    set_attr(*w.file, "warnings", text);
+    set_attr(*w.file, "warning_count", static_cast<long long>(lines.size()));
+    w.dirty = true;
+  } catch (const H5::Exception& e) {
+    fail(w.path, "cannot write the warnings: " + h5_message(e));
   }
 }
 

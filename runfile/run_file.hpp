@@ -3,6 +3,7 @@
 //   /                  attributes: format_version, status, status_reason, scenario,
 //                      scenario_file, solver, config (resolved TOML), dt, steps_planned,
 //                      steps_completed, exploded_step, exploded_time, wall_time, created,
+//                      warnings (one per line, "" when none: metrics/health.hpp), warning_count,
 //                      pbdbench_version, git_commit, compiler, build_type, cxx_flags
 //   /series/<name>     one dataset per series_table() entry (+ per-group series), extendible,
 //                      chunked; attributes units, doc, deterministic
@@ -64,6 +65,10 @@ class RunFileWriter {
   void append_frame(double time, const Points& x);  // one frame of positions
   void flush();
 
+  // Records the run's warnings (metrics/health.hpp): the root attributes "warnings" (one per
+  // line) and "warning_count". Every file starts with none.
+  void set_warnings(const std::vector<std::string>& lines);
+
   // Records how the run ended and closes the file. For Exploded, exploded_step/time say when.
   void finish(RunStatus status, const std::string& reason, long steps_completed,
               double wall_time, long exploded_step = -1, double exploded_time = -1.0);
@@ -81,6 +86,8 @@ struct RunFileData {
   std::map<std::string, Points> series3;              // width-3 series
   std::vector<std::string> group_names;
   std::string status() const;  // attributes["status"]
+  // attributes["warnings"] split into lines (none for files written before warnings existed).
+  std::vector<std::string> warnings() const;
 };
 
 // Throws std::runtime_error naming the path when the file cannot be read.
