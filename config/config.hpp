@@ -149,9 +149,13 @@ SolverOptions solver_options(const Config& config);
 struct RunOptions {
   double dt = 1.0 / 60.0;  // time.dt: s
   double duration = 1.0;   // time.duration: s; steps = round(duration / dt)
-  int frame_every = 10;    // output.frame_every: write positions every k steps (and the last)
+  int frame_every = 0;     // output.frame_every: write positions and velocities every k steps
+                           // (and the last); 0: every_frame() below
   ExplosionLimits limits;  // limits.*
   long steps() const;
+  // The steps between frames: frame_every, or for 0 the steps nearest 1/60 s of simulated time
+  // (at least 1): a smooth animation at 60 frames a second of simulated time.
+  long every_frame() const;
 };
 RunOptions run_options(const Config& config);
 

@@ -110,6 +110,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
 
   RunOutcome outcome;
   outcome.steps_planned = run.steps();
+  const long frame_every = run.every_frame();
 
   if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
   RunHeader header;
@@ -135,7 +136,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
 
   const StepReport initial_report;
   writer.append({state.time, state.step, 0.0, &sample, &initial_report});
-  writer.append_frame(state.time, state.x);
+  writer.append_frame(state.time, state.x, &state.v);
 
   State shadow_state;
   // The velocities after the two previous steps (the initial ones before step 1), for
@@ -175,7 +176,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       std::string why = explosion_reason(model, state, sample, run.limits, baseline);
       if (why.empty()) why = non_finite(sample);
       if (!why.empty()) {
-        writer.append_frame(state.time, state.x);
+        writer.append_frame(state.time, state.x, &state.v);
         outcome.status = RunStatus::Exploded;
         outcome.reason = why;
         outcome.exploded_step = k;
@@ -185,12 +186,12 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
         writer.finish(RunStatus::Exploded, why, k, outcome.wall_time, k, state.time);
         return outcome;
       }
-      if (k % run.frame_every == 0 || k == outcome.steps_planned)
-        writer.append_frame(state.time, state.x);
+      if (k % frame_every == 0 || k == outcome.steps_planned)
+        writer.append_frame(state.time, state.x, &state.v);
       if (control.progress) control.progress(k, outcome.steps_planned);
       const bool stop = (control.stop != nullptr && control.stop->load()) || cancel_requested();
       if (stop && k < outcome.steps_planned) {
-        writer.append_frame(state.time, state.x);
+        writer.append_frame(state.time, state.x, &state.v);
         outcome.status = RunStatus::Incomplete;
         outcome.reason = "interrupted after step " + std::to_string(k);
         outcome.final_sample = sample;

@@ -309,7 +309,7 @@ struct RunFileWriter::Impl {
   std::optional<H5::H5File> file;
   std::vector<Series> series;        // series_table() order, then group series
   std::vector<std::string> series_names;
-  std::optional<H5::DataSet> frame_time, frame_positions;
+  std::optional<H5::DataSet> frame_time, frame_positions, frame_velocities;
   hsize_t frames = 0;
 
   size_t pending_rows = 0;
@@ -367,6 +367,7 @@ struct RunFileWriter::Impl {
     series.clear();
     frame_time.reset();
     frame_positions.reset();
+    frame_velocities.reset();
     try {
       file.reset();
     } catch (...) {
@@ -492,6 +493,11 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
                                                      small_chunk_cache(static_cast<size_t>(chunk[1]) * 3 * sizeof(double))));
       set_attr(*w.frame_positions, "units", "m");
       set_attr(*w.frame_positions, "doc", "particle positions of each frame, (frames, n, 3)");
+      w.frame_velocities.emplace(frames.createDataSet("velocities", H5::PredType::IEEE_F64LE,
+                                                      H5::DataSpace(3, dims, maxdims), props,
+                                                      small_chunk_cache(static_cast<size_t>(chunk[1]) * 3 * sizeof(double))));
+      set_attr(*w.frame_velocities, "units", "m/s");
+      set_attr(*w.frame_velocities, "doc", "particle velocities of each frame, (frames, n, 3) (NaN where not given)");
     }
   } catch (const H5::Exception& e) {
     fail(path, "cannot create the HDF5 file: " + h5_message(e));
@@ -551,7 +557,7 @@ void RunFileWriter::append(const SeriesRow& row) {
   }
 }
 
-void RunFileWriter::append_frame(double time, const Points& x) {
+void RunFileWriter::append_frame(double time, const Points& x, const Points* v) {
   Impl& w = *impl_;
   if (w.closed)
     throw std::logic_error("run file " + w.path.string() + ": append_frame() after finish()");
@@ -564,9 +570,17 @@ void RunFileWriter::append_frame(double time, const Points& x) {
     hsize_t rows = w.frames;
     append_rows(*w.frame_time, rows, 1, {}, &time, H5::PredType::NATIVE_DOUBLE);
     rows = w.frames;
-    if (w.particles > 0)
+    if (w.particles > 0) {
       append_rows(*w.frame_positions, rows, 1, {static_cast<hsize_t>(w.particles), 3}, x.data(),
                   H5::PredType::NATIVE_DOUBLE);
+      rows = w.frames;
+      const Points nan = v != nullptr && v->rows() == x.rows()
+                             ? Points()
+                             : Points::Constant(x.rows(), 3, std::numeric_limits<double>::quiet_NaN());
+      const Points& vel = nan.rows() > 0 ? nan : *v;
+      append_rows(*w.frame_velocities, rows, 1, {static_cast<hsize_t>(w.particles), 3}, vel.data(),
+                  H5::PredType::NATIVE_DOUBLE);
+    }
     w.frames += 1;
     w.dirty = true;
     w.maybe_publish();

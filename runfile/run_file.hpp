@@ -9,6 +9,7 @@
 //                      chunked; attributes units, doc, deterministic
 //   /frames/time       (F,) s
 //   /frames/positions  (F, n, 3) m, chunked (1, n, 3), shuffle + gzip
+//   /frames/velocities (F, n, 3) m/s, the same (NaN rows where a frame came without them)
 //   /model/...         rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),
 //                      triangles (T,3), tets (K,4), constraint_kind (m), constraint_particles
 //                      (m,4), constraint_rest (m), constraint_compliance (m),
@@ -62,7 +63,8 @@ class RunFileWriter {
   RunFileWriter& operator=(const RunFileWriter&) = delete;
 
   void append(const SeriesRow& row);                // one row of every series
-  void append_frame(double time, const Points& x);  // one frame of positions
+  // One frame of positions and, when given, velocities (else NaN).
+  void append_frame(double time, const Points& x, const Points* v = nullptr);
   void flush();
 
   // Records the run's warnings (metrics/health.hpp): the root attributes "warnings" (one per
