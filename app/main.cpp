@@ -625,6 +625,10 @@ int main(int argc, char** argv) {
       if (markdown) {
         std::cout << series_markdown();
       } else {
+        std::cout << "Each series is a dataset of the run file: /series/<name>, one row per step (row 0 the\n"
+                     "initial state), shape (rows,) or (rows, 3); frames are in /frames (time, positions,\n"
+                     "velocities), the model in /model (results/README.md has the whole layout).\n\n";
+        std::cout << fmt::format("{:<22} {:<3} {:<10} {}\n", "name", "dim", "units", "doc");
         for (const SeriesSpec& s : series_table())
           std::cout << fmt::format("{:<22} {:<3} {:<10} {}\n", s.name, s.width == 1 ? "1" : "3", s.units, s.doc);
         for (const GroupSeriesSpec& g : group_series_table())

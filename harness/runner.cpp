@@ -68,7 +68,13 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
           "relax.frames = " + std::to_string(relax_frames) + " cannot be combined with a shadow "
           "(shadow.solver = '" + shadow_name + "' builds its energy model once)");
   }
-  auto solver = control.make_solver ? control.make_solver(solver_opts, model) : make_solver(solver_opts, model);
+  // A solver that cannot run this scene is bad input (exit 2), found after parsing.
+  std::unique_ptr<Solver> solver;
+  try {
+    solver = control.make_solver ? control.make_solver(solver_opts, model) : make_solver(solver_opts, model);
+  } catch (const std::invalid_argument& e) {
+    throw config::ConfigError(config::Source{config.file.string(), 0}, "solver.name", e.what());
+  }
   // The shadow: a global solver stepping a copy of the state from the same start.
   std::unique_ptr<Solver> shadow;
   const long shadow_every = static_cast<long>(config.get_int("shadow.every"));
