@@ -256,7 +256,7 @@ int cmd_list() {
 
 // A scenario (file or catalog name) is described with its resolved values and their sources; a
 // scene kind (or any name with --kind) with its keys. Scenario names win: "spring" is both.
-int cmd_describe(const std::string& what, const std::vector<std::string>& sets, bool kind) {
+int cmd_describe(const std::string& what, const std::vector<std::string>& sets, bool kind, bool all) {
   bool is_kind = false;
   for (const auto& k : config::scene_kinds()) is_kind = is_kind || k.name == what;
   bool is_scenario = !kind;
@@ -272,7 +272,7 @@ int cmd_describe(const std::string& what, const std::vector<std::string>& sets, 
     return kExitOk;
   }
   const config::Config cfg = config::load(what, parse_overrides(sets));
-  std::cout << config::describe_config(cfg);
+  std::cout << config::describe_config(cfg, all, 100);
   return kExitOk;
 }
 
@@ -443,6 +443,8 @@ int main(int argc, char** argv) {
   describe->add_option("--set", sets, "Overrides to apply before describing (repeatable)");
   bool kind = false;
   describe->add_flag("--kind", kind, "Describe the scene kind of this name, not a scenario");
+  bool describe_all = false;
+  describe->add_flag("--all", describe_all, "Show the keys of every solver, not only the chosen one's");
 
   auto* summary = app.add_subcommand("summary", "Print a table of what run files measured");
   summary->add_option("files", files, "Run files");
@@ -573,7 +575,7 @@ int main(int argc, char** argv) {
     if (*export_sub) return cmd_export(files, out);
     if (*sweep) return cmd_sweep(file, out, jobs, force, sweep_array, sets, quiet, argc, argv);
     if (app.got_subcommand("list")) return cmd_list();
-    if (*describe) return cmd_describe(scenario, sets, kind);
+    if (*describe) return cmd_describe(scenario, sets, kind, describe_all);
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);

@@ -166,6 +166,11 @@ RunOptions run_options(const Config& config);
 // and docs, as a plain-text table; with a Config, the values it resolved to and their sources.
 std::string describe_keys(const std::string& scene_kind);
 std::string describe_config(const Config& config);
+// The same for a reader, in `width` columns (each key on one line, its doc wrapped below it):
+// the solver's own keys only (solver.<family>.* of other solvers and the *_stiffness or
+// *_compliance keys the solver does not read are hidden unless `all`), then, per constraint
+// group of the built scene, the material value the chosen solver uses.
+std::string describe_config(const Config& config, bool all, std::size_t width);
 
 // The scenario files in scenarios_dir() and its subfolders, sorted: name ("hanging_chain",
 // "failures/zero_rest_length"), scene kind, description.
