@@ -276,7 +276,9 @@ class CliTest(unittest.TestCase):
             self.assertTrue(np.all(np.isnan(f["series/support_force"][()])))
 
     def test_compare_two_runs_writes_hdf5_png_and_summary(self):
-        xpbd, pbd = self.chain("xpbd.h5"), self.chain("pbd.h5", solver="pbd")
+        # Frames every 10 steps (the default is a frame each 1/60 s, every step here).
+        xpbd = self.chain("xpbd.h5", "output.frame_every=10")
+        pbd = self.chain("pbd.h5", "output.frame_every=10", solver="pbd")
         out, png = os.path.join(self.dir, "cmp.h5"), os.path.join(self.dir, "cmp.png")
         r = pbdbench("compare", xpbd, pbd, "--out", out, "--plot", png)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
@@ -315,8 +317,8 @@ class CliTest(unittest.TestCase):
             self.assertTrue(np.all(np.isnan(f["compare/observables/support_force_reference"][()])))
 
     def test_compare_interpolates_a_sparser_reference_and_warns(self):
-        fine = self.chain("fine.h5", "time.dt=0.008333333333333333", "time.duration=0.5")
-        coarse = self.chain("coarse.h5", "time.duration=0.5")
+        fine = self.chain("fine.h5", "time.dt=0.008333333333333333", "time.duration=0.5", "output.frame_every=10")
+        coarse = self.chain("coarse.h5", "time.duration=0.5", "output.frame_every=10")
         r = pbdbench("compare", fine, coarse, "--until", "0.4")
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         # The fine run's frames every 10 steps of 1/120 s, the coarse one's every 1/6 s: up to 0.4 s,
