@@ -117,8 +117,8 @@ TEST(Runner, SameInputsGiveIdenticalSeries) {
       const config::Config cfg = config::load(info.file.string(), o);
       const fs::path a = temp_file("det_a.h5"), b = temp_file("det_b.h5");
       if (std::string(solver) != "xpbd" && !config::build_scene(cfg).model.elements.empty()) {
-        // pbd and pbd-seed have no FEM material: they refuse the FEM scenes.
-        EXPECT_THROW(run_config(cfg, a), std::invalid_argument) << info.name << " " << solver;
+        // pbd and pbd-seed have no FEM material: they refuse the FEM scenes, as bad input (exit 2).
+        EXPECT_THROW(run_config(cfg, a), config::ConfigError) << info.name << " " << solver;
         continue;
       }
       run_config(cfg, a);
