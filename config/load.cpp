@@ -874,6 +874,11 @@ SolverOptions solver_options(const Config& config) {
 
 long RunOptions::steps() const { return static_cast<long>(std::llround(duration / dt)); }
 
+long RunOptions::every_frame() const {
+  if (frame_every > 0) return frame_every;
+  return std::max<long>(1, static_cast<long>(std::llround((1.0 / 60.0) / dt)));
+}
+
 RunOptions run_options(const Config& config) {
   RunOptions r;
   r.dt = config.get_double("time.dt");

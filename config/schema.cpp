@@ -584,8 +584,9 @@ const std::vector<KeySpec>& common_keys() {
              "start of every k-th step it solves the converged step without touching the run, "
              "and the gap is logged (shadow_* series); empty: no shadow"),
         integer("shadow.every", 1, within(1, 1000000000), "the shadow solves every k-th step"),
-        integer("output.frame_every", run.frame_every, within(1, 1000000000),
-                "write positions every k steps (and the last step)"),
+        integer("output.frame_every", run.frame_every, within(0, 1000000000),
+                "write positions and velocities every k steps (and the last step); 0: the steps "
+                "nearest 1/60 s (a frame each 1/60 s of simulated time)"),
         real("limits.max_speed", lim.max_speed, "m/s", above(0),
              "a run has exploded when a particle is faster than this"),
         real("limits.max_extent_ratio", lim.max_extent_ratio, "1", above(0),

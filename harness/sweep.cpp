@@ -209,6 +209,7 @@ bool run_children(const fs::path& executable, const std::vector<ChildRun>& runs,
     args.push_back("--out");
     args.push_back(r.file.string());
     args.push_back("--quiet");
+    args.push_back("--no-xdmf");  // `pbdbench export` makes one when wanted
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
