@@ -222,7 +222,9 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
     }
     const int jobs = cmd.jobs > 0 ? cmd.jobs : slurm::allocated_cpus();
     log << fmt::format("{}: {} runs{}, {} to run, {} at a time -> {}\n", command_name(cmd.kind), u.plan.size(),
-                       cmd.shard_count > 1 ? fmt::format(" (shard {} of {})", cmd.shard_index, cmd.shard_count) : "",
+                       cmd.shard_count > 1 ? fmt::format(" ({}, {})", shard_name(cmd.shard_index, cmd.shard_count),
+                                                         shard_numbering(cmd.shard_count))
+                                       : "",
                        children.size(), jobs, options.runs_dir.string());
     run_children(cmd.executable, children, jobs,
                  [&](size_t c, const std::string& status, const std::string& message) {
@@ -241,8 +243,8 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
           ++timed;
         }
       write_index(options.runs_dir / fmt::format("index.shard-{}-of-{}.json", cmd.shard_index, cmd.shard_count), u.plan);
-      out << fmt::format("shard {} of {}: {} runs made, {} failed, {} timing groups; then --merge {} writes the report\n",
-                         cmd.shard_index, cmd.shard_count, children.size(), outcome.failed_runs, timed,
+      out << fmt::format("{}: {} runs made, {} failed, {} timing groups; then --merge {} writes the report\n",
+                         shard_name(cmd.shard_index, cmd.shard_count), children.size(), outcome.failed_runs, timed,
                          cmd.shard_count);
       outcome.out.clear();
       return outcome;

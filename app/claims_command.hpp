@@ -6,7 +6,7 @@
 //   pbdbench claims --tier quick --expect claims/verdicts_quick.toml   (the test suite)
 //   pbdbench paper                       every reproduction, full tier -> paper/
 //   pbdbench paper --jobs 8              the runs 8 at a time in child processes, then the report
-//   pbdbench paper --shard 3/16          only the runs of shard 3 of 16 (a job array), no report
+//   pbdbench paper --shard 3/16          only the runs of shard 3/16 (counted from 0), no report
 //   pbdbench paper --merge 16            after the 16 shards: check every run, write the report
 //   pbdbench paper --slurm 16            submit the shards as a Slurm job array, then the merge
 //                                        (app/slurm_command.hpp, docs/cluster.md)

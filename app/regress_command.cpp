@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "config/data_dir.hpp"
+#include "harness/shards.hpp"
 #include "harness/slurm.hpp"
 #include "harness/sweep.hpp"
 #include "regress/regress.hpp"
@@ -145,7 +146,9 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
     }
     const int jobs = cmd.jobs > 0 ? cmd.jobs : slurm::allocated_cpus();
     log << fmt::format("regress: {} cases{}, {} runs to make, {} at a time -> {}\n", cases.size(),
-                       cmd.shard_count > 1 ? fmt::format(" (shard {} of {})", cmd.shard_index, cmd.shard_count) : "",
+                       cmd.shard_count > 1 ? fmt::format(" ({}, {})", shard_name(cmd.shard_index, cmd.shard_count),
+                                                         shard_numbering(cmd.shard_count))
+                                       : "",
                        children.size(), jobs, outcome.runs.string());
     run_children(cmd.executable, children, jobs, [&](size_t c, const std::string& status, const std::string& message) {
       if (status == "failed" || status == "incomplete") {
@@ -155,8 +158,9 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
     });
     if (cmd.shard_count > 1) {
       write_index(outcome.runs / fmt::format("index.shard-{}-of-{}.json", cmd.shard_index, cmd.shard_count), cases);
-      out << fmt::format("shard {} of {}: {} runs made, {} failed; then --merge {} compares and reports\n",
-                         cmd.shard_index, cmd.shard_count, children.size(), outcome.failed_runs, cmd.shard_count);
+      out << fmt::format("{}: {} runs made, {} failed; then --merge {} compares and reports\n",
+                         shard_name(cmd.shard_index, cmd.shard_count), children.size(), outcome.failed_runs,
+                         cmd.shard_count);
       outcome.out.clear();
       return outcome;
     }

@@ -8,7 +8,7 @@
 //                                        two branches) instead of the stored baselines
 //   pbdbench regress --repeat            run every case twice: the bitwise tier (determinism)
 //
-//   pbdbench regress --shard 1/4         only the runs of shard 1 of 4 (one case a unit), no report
+//   pbdbench regress --shard 1/4         only the runs of shard 1/4 (counted from 0; one case a unit), no report
 //   pbdbench regress --merge 4           after the shards: check every run, then compare and report
 //   pbdbench regress --slurm 4           the shards as a Slurm job array, then the merge
 //

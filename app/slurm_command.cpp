@@ -15,7 +15,9 @@ namespace pbdbench::app {
 namespace fs = std::filesystem;
 
 void add_array_options(CLI::App* command, ArrayOptions& o) {
-  command->add_option("--shard", o.shard, "Make only the runs of shard I of N (I/N, 0-based): one task of a job array");
+  command->add_option("--shard", o.shard,
+                      "Make only the runs of shard I of N, one task of a job array. Shards are counted from 0, as "
+                      "Slurm's array task ids: I/N with 0 <= I < N (0/4, 1/4, 2/4 and 3/4 for four shards)");
   command->add_option("--merge", o.merge,
                       "After N shards: check that every run is finished (exit 1 naming the shards that are not) "
                       "and write the report; makes no run")
@@ -46,10 +48,14 @@ void parse_array_options(const ArrayOptions& o, int& index, int& count) {
     count = std::stoi(o.shard.substr(slash + 1), &used);
     if (used != o.shard.size() - slash - 1) throw std::invalid_argument("not a number");
   } catch (const std::exception&) {
-    throw config::ConfigError({"--shard " + o.shard, 0}, "", "expected --shard I/N with 0 <= I < N");
+    throw config::ConfigError({"--shard " + o.shard, 0}, "",
+                              "expected I/N, two integers: shard I of N, counted from 0 (0/N to N-1/N)");
   }
-  if (count < 1 || index < 0 || index >= count)
-    throw config::ConfigError({"--shard " + o.shard, 0}, "", "expected --shard I/N with 0 <= I < N");
+  if (count < 1)
+    throw config::ConfigError({"--shard " + o.shard, 0}, "", "N, the number of shards, must be at least 1");
+  if (index < 0 || index >= count)
+    throw config::ConfigError({"--shard " + o.shard, 0}, "",
+                              fmt::format("shards are {} (I/N with 0 <= I < N)", shard_numbering(count)));
 }
 
 int submit_to_slurm(const std::string& command, const ArrayOptions& o, const fs::path& run_files,

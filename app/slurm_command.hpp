@@ -1,7 +1,8 @@
 // The options every command that makes many runs shares (paper, claims, regress, sweep), to split
 // its runs into shards and to run them as a Slurm job array:
 //
-//   --shard I/N            make only the runs of shard I of N (0-based): one task of an array
+//   --shard I/N            make only the runs of shard I of N: one task of an array; shards are
+//                          counted from 0, as Slurm's array task ids (0/N to N-1/N)
 //   --merge N              after N shards: check that every run is finished (else exit 1, naming
 //                          the shards that are not and how to make them) and write the report,
 //                          index.json and the summary; it makes no run
@@ -38,8 +39,8 @@ struct ArrayOptions {
 // Adds the options above to a subcommand.
 void add_array_options(CLI::App* command, ArrayOptions& options);
 
-// "--shard I/N" -> (I, N); throws config::ConfigError (bad input) unless 0 <= I < N, or when
-// --shard, --merge and --slurm are mixed.
+// "--shard I/N" -> (I, N); throws config::ConfigError (bad input, naming the numbering from 0) unless
+// 0 <= I < N, or when --shard, --merge and --slurm are mixed.
 void parse_array_options(const ArrayOptions& options, int& shard_index, int& shard_count);
 
 // --slurm N: writes the scripts to <run_files>/slurm and submits the shards that hold a run still

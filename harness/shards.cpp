@@ -47,6 +47,13 @@ std::string run_state(const fs::path& file, const std::string& config_toml) {
   }
 }
 
+std::string shard_name(int index, int count) { return fmt::format("shard {}/{}", index, count); }
+
+std::string shard_numbering(int count) {
+  if (count <= 1) return "counted from 0: 0/1 alone";
+  return fmt::format("counted from 0: 0/{} to {}/{}", count, count - 1, count);
+}
+
 std::vector<int> shards_of(const std::vector<UnfinishedRun>& runs) {
   std::vector<int> out;
   for (const UnfinishedRun& r : runs) out.push_back(r.shard);
@@ -58,11 +65,12 @@ std::vector<int> shards_of(const std::vector<UnfinishedRun>& runs) {
 std::string unfinished_report(const std::vector<UnfinishedRun>& runs, int shards, const std::string& next_steps) {
   std::map<int, std::vector<const UnfinishedRun*>> by_shard;
   for (const UnfinishedRun& r : runs) by_shard[r.shard].push_back(&r);
-  std::string out = fmt::format("{} run{} of {} shard{} (of {}) {} not finished; nothing was merged:\n", runs.size(),
-                                runs.size() == 1 ? "" : "s", by_shard.size(), by_shard.size() == 1 ? "" : "s", shards,
+  std::string out = fmt::format("{} run{} of {} shard{} (of {}, {}) {} not finished; nothing was merged:\n",
+                                runs.size(), runs.size() == 1 ? "" : "s", by_shard.size(),
+                                by_shard.size() == 1 ? "" : "s", shards, shard_numbering(shards),
                                 runs.size() == 1 ? "is" : "are");
   for (const auto& [shard, list] : by_shard) {
-    out += fmt::format("  shard {} of {}: {} run{}\n", shard, shards, list.size(), list.size() == 1 ? "" : "s");
+    out += fmt::format("  {}: {} run{}\n", shard_name(shard, shards), list.size(), list.size() == 1 ? "" : "s");
     constexpr size_t kShown = 10;  // per shard; index.json lists every run with its status
     for (size_t k = 0; k < list.size(); ++k) {
       if (k == kShown) {

@@ -39,6 +39,13 @@ struct UnfinishedRun {
   std::string state;  // run_state()
 };
 
+// How every message names shard `index` of `count`, as --shard takes it: "shard 1/4". Shards are
+// counted from 0 (0/4 to 3/4), as a Slurm job array's task ids are.
+std::string shard_name(int index, int count);
+
+// The numbering of `count` shards, for a message: "counted from 0: 0/4 to 3/4" ("0/1" alone).
+std::string shard_numbering(int count);
+
 // Shards (sorted, once each) that hold at least one of `runs`.
 std::vector<int> shards_of(const std::vector<UnfinishedRun>& runs);
 

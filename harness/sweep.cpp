@@ -20,6 +20,7 @@
 #include <toml++/toml.h>
 
 #include "config/toml_text.hpp"
+#include "harness/shards.hpp"
 #include "runfile/build_info.hpp"
 #include "core/cancel.hpp"
 #include "runfile/output_guard.hpp"
@@ -369,7 +370,7 @@ bool run_is_current(const fs::path& file, const std::string& config_toml) {
 
 SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::ostream& log) {
   if (options.shard_count < 1 || options.shard_index < 0 || options.shard_index >= options.shard_count)
-    throw std::invalid_argument("shard index must be in [0, count)");
+    throw std::invalid_argument("run_sweep: shards are counted from 0: the shard index must be in [0, count)");
   std::vector<size_t> indices;
   for (size_t k = 0; k < spec.runs.size(); ++k)
     if (static_cast<int>(k % static_cast<size_t>(options.shard_count)) == options.shard_index) indices.push_back(k);
@@ -425,7 +426,9 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
   }
   const size_t skipped = indices.size() - pending.size();
   log << "sweep " << spec.name << ": " << indices.size() << " runs";
-  if (options.shard_count > 1) log << " (shard " << options.shard_index << " of " << options.shard_count << ")";
+  if (options.shard_count > 1)
+    log << " (" << shard_name(options.shard_index, options.shard_count) << ", " << shard_numbering(options.shard_count)
+        << ")";
   log << ", " << skipped << " already complete, " << pending.size() << " to run, " << options.jobs
       << " at a time -> " << options.out_dir.string() << "\n";
 

@@ -246,7 +246,7 @@ cancel_check() {
   state=$(wait_job "$merge")
   check "cancel: the merge fails when a task was cancelled (it ended $state)" test "$state" = FAILED
   log=$runs/slurm/claims-merge-$merge.log
-  check "cancel: the merge names shard 1" grep -q "shard 1 of $shards" "$log"
+  check "cancel: the merge names shard 1" grep -q "shard 1/$shards:" "$log"
   check "cancel: the merge says how to resubmit" grep -q "bash $runs/slurm/submit.sh" "$log"
   check "cancel: no report after a failed merge" test ! -e "$work/cancel/report/README.md"
   before=$(find "$runs" -name '*.h5' | wc -l)

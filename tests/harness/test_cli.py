@@ -156,6 +156,33 @@ class CliTest(unittest.TestCase):
         r = pbdbench("sweep", sweep, "--out", out, "--shard", "2/2")
         self.assertEqual(r.returncode, 2)
 
+    def test_shards_count_from_0_in_the_help_the_errors_and_the_progress(self):
+        # Every command that takes --shard says so in its help.
+        for command in ("sweep", "paper", "claims", "regress"):
+            r = pbdbench(command, "--help")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertIn("Shards are counted from 0", " ".join(r.stdout.split()), command)
+        sweep = self.write("s.toml", 'scenario = "hanging_chain"\n[set]\n"time.duration" = 0.05\n'
+                                     '[grid]\n"solver.iterations" = [1, 2]\n')
+        out = os.path.join(self.dir, "sharded")
+        # The last shard of N is N-1/N; N/N (a count from 1) is refused with the range, before any run.
+        for bad, says in (("2/2", "--shard 2/2: shards are counted from 0: 0/2 to 1/2"),
+                          ("-1/2", "--shard -1/2: shards are counted from 0: 0/2 to 1/2"),
+                          ("1/1", "--shard 1/1: shards are counted from 0: 0/1 alone"),
+                          ("0/0", "--shard 0/0: N, the number of shards, must be at least 1"),
+                          ("1of2", "--shard 1of2: expected I/N, two integers: shard I of N, counted from 0"),
+                          ("a/2", "--shard a/2: expected I/N")):
+            r = pbdbench("sweep", sweep, "--out", out, "--shard", bad)
+            self.assertEqual(r.returncode, 2, bad + ": " + r.stdout + r.stderr)
+            self.assertIn(says, r.stderr, bad)
+            self.assertFalse(os.path.exists(out), bad)
+        # The progress names the shard as --shard takes it, with the numbering.
+        r = pbdbench("sweep", sweep, "--out", out, "--shard", "1/2")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("1 runs (shard 1/2, counted from 0: 0/2 to 1/2)", r.stdout)
+        with open(os.path.join(out, "index.shard-1-of-2.json")) as f:
+            self.assertEqual([run["params"]["solver.iterations"] for run in json.load(f)["runs"]], [2])
+
     def test_sweep_with_a_refused_run_starts_nothing(self):
         sweep = self.write("bad.toml", 'scenario = "hanging_chain"\n[grid]\n"solver.iterations" = [1, 0]\n')
         out = os.path.join(self.dir, "bad")

@@ -55,9 +55,10 @@ TEST(Shards, RunStateAgainstThePlannedConfiguration) {
                                            {2, "S9/c", dir / "junk.h5", "failed"}};
   EXPECT_EQ(shards_of(runs), (std::vector<int>{0, 2}));
   const std::string text = unfinished_report(runs, 3, "NEXT\n");
-  EXPECT_NE(text.find("3 runs of 2 shards (of 3) are not finished"), std::string::npos) << text;
-  EXPECT_NE(text.find("shard 0 of 3: 1 run\n    S9/b: incomplete"), std::string::npos) << text;
-  EXPECT_NE(text.find("shard 2 of 3: 2 runs\n    S9/a: missing"), std::string::npos) << text;
+  EXPECT_NE(text.find("3 runs of 2 shards (of 3, counted from 0: 0/3 to 2/3) are not finished"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("shard 0/3: 1 run\n    S9/b: incomplete"), std::string::npos) << text;
+  EXPECT_NE(text.find("shard 2/3: 2 runs\n    S9/a: missing"), std::string::npos) << text;
   EXPECT_EQ(text.substr(text.size() - 5), "NEXT\n");
   // A long list is cut at ten runs a shard.
   const std::vector<UnfinishedRun> many(12, UnfinishedRun{0, "S9/x", file, "missing"});

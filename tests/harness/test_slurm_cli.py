@@ -123,8 +123,8 @@ class SlurmCliTest(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(slurm, "paper-100_0.log")))
         with open(os.path.join(slurm, "paper-merge-101.log")) as f:
             log = f.read()
-        self.assertIn("of 1 shard (of 3) are not finished; nothing was merged", log)
-        self.assertIn("shard 1 of 3:", log)
+        self.assertIn("of 1 shard (of 3, counted from 0: 0/3 to 2/3) are not finished; nothing was merged", log)
+        self.assertIn("shard 1/3:", log)
         self.assertIn("missing (no run file: the task did not reach it)", log)
         self.assertIn(f"bash {slurm}/submit.sh", log)
         self.assertIn("--array=1 ", log)
@@ -173,9 +173,9 @@ class SlurmCliTest(unittest.TestCase):
         self.assertIn("1 at a time", r.stderr)  # the allocation's cores, not the machine's
         r = pbdbench(*args, "--merge", "3", cwd=self.dir)
         self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
-        self.assertIn("shard 1 of 3", r.stderr)
-        self.assertIn("shard 2 of 3", r.stderr)
-        self.assertNotIn("shard 0 of 3", r.stderr)
+        self.assertIn("shard 1/3:", r.stderr)
+        self.assertIn("shard 2/3:", r.stderr)
+        self.assertNotIn("shard 0/3:", r.stderr)
         self.assertIn("--shard I/3", r.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.dir, "report")))
 
