@@ -428,17 +428,39 @@ std::string results_json(const std::vector<CaseResult>& results) {
 }
 
 std::string report_table(const Report& rep) {
+  // The verdicts first (what changed beyond its tolerance, and the new metrics), then the timings
+  // under their own heading: a ratio of wall-clock times is never a verdict.
   std::ostringstream out;
-  out << fmt::format("{:<26} {:<26} {:>13} {:>13} {:>11} {:>10}  {}\n", "case", "metric", "baseline", "now",
-                     "change", "allowed", "verdict");
-  for (const Row& r : rep.rows) {
-    if (r.verdict == Verdict::Same) continue;
-    out << fmt::format("{:<26} {:<26} {:>13} {:>13} {:>11} {:>10}  {}\n", r.case_name, r.metric, number(r.baseline),
-                       number(r.now), r.verdict == Verdict::Ratio ? "x" + number(r.change) : number(r.change),
-                       r.verdict == Verdict::Ratio ? "" : number(r.allowed), to_string(r.verdict));
+  const auto row = [&](const std::string& c, const std::string& m, const std::string& base, const std::string& now,
+                       const std::string& change, const std::string& allowed, const std::string& verdict) {
+    out << fmt::format("{:<26} {:<26} {:>13} {:>13} {:>11} {:>10}  {}\n", c, m, base, now, change, allowed, verdict);
+  };
+  const auto shown = [](const Row& r) { return r.verdict != Verdict::Same && r.verdict != Verdict::Ratio; };
+  const bool any_change = std::any_of(rep.rows.begin(), rep.rows.end(), shown);
+  if (any_change) {
+    row("case", "metric", "baseline", "now", "change", "allowed", "verdict");
+    for (const Row& r : rep.rows)
+      if (shown(r))
+        row(r.case_name, r.metric, number(r.baseline), number(r.now), number(r.change), number(r.allowed),
+            to_string(r.verdict));
   }
-  out << fmt::format("{} metrics: {} same, {} better, {} worse (timings and new metrics aside)\n", rep.rows.size(),
-                     rep.same, rep.better, rep.worse);
+  const auto timings =
+      std::count_if(rep.rows.begin(), rep.rows.end(), [](const Row& r) { return r.verdict == Verdict::Ratio; });
+  out << fmt::format("{} metrics: {} same, {} better, {} worse{} (timings and new metrics aside)\n", rep.rows.size(),
+                     rep.same, rep.better, rep.worse, any_change ? "" : "; none changed beyond its tolerance");
+  if (timings > 0) {
+    out << fmt::format("\ntimings ({}): now / baseline, never a verdict (wall-clock times vary with the machine "
+                       "and its load)\n",
+                       timings);
+    const auto timing = [&](const std::string& c, const std::string& m, const std::string& base,
+                            const std::string& now, const std::string& ratio) {
+      out << fmt::format("{:<26} {:<26} {:>13} {:>13} {:>11}\n", c, m, base, now, ratio);
+    };
+    timing("case", "metric", "baseline", "now", "ratio");
+    for (const Row& r : rep.rows)
+      if (r.verdict == Verdict::Ratio)
+        timing(r.case_name, r.metric, number(r.baseline), number(r.now), fmt::format("x{}", number(r.change)));
+  }
   return out.str();
 }
 
@@ -448,11 +470,18 @@ std::string report_markdown(const Report& rep, const std::string& header) {
      << fmt::format("**{} metrics: {} same, {} better, {} worse.**\n\n", rep.rows.size(), rep.same, rep.better, rep.worse)
      << "| case | metric | baseline | now | change | allowed | verdict |\n|---|---|---|---|---|---|---|\n";
   for (const Row& r : rep.rows)
-    md << fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", r.case_name, r.metric,
-                      number(r.baseline) + (r.units.empty() ? "" : " " + r.units), number(r.now),
-                      r.verdict == Verdict::Ratio ? "x" + number(r.change) : number(r.change),
-                      r.verdict == Verdict::Ratio ? "" : number(r.allowed),
-                      r.verdict == Verdict::Worse ? "**worse**" : to_string(r.verdict));
+    if (r.verdict != Verdict::Ratio)
+      md << fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", r.case_name, r.metric,
+                        number(r.baseline) + (r.units.empty() ? "" : " " + r.units), number(r.now), number(r.change),
+                        number(r.allowed), r.verdict == Verdict::Worse ? "**worse**" : to_string(r.verdict));
+  if (std::any_of(rep.rows.begin(), rep.rows.end(), [](const Row& r) { return r.verdict == Verdict::Ratio; })) {
+    md << "\n## Timings\n\nNow / baseline, never a verdict: wall-clock times vary with the machine and its load.\n\n"
+       << "| case | metric | baseline | now | ratio |\n|---|---|---|---|---|\n";
+    for (const Row& r : rep.rows)
+      if (r.verdict == Verdict::Ratio)
+        md << fmt::format("| {} | {} | {} | {} | x{} |\n", r.case_name, r.metric,
+                          number(r.baseline) + (r.units.empty() ? "" : " " + r.units), number(r.now), number(r.change));
+  }
   md << "\n## Bitwise tier\n\n";
   for (const std::string& l : rep.hash_lines) md << "- " << l << "\n";
   return md.str();

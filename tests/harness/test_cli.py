@@ -532,6 +532,17 @@ rule = "err < 0.1"
                      "--out", os.path.join(self.dir, "b"))
         self.assertEqual(r.returncode, 6, r.stdout + r.stderr)
         self.assertRegex(r.stdout, r"chain_pbd +constraint_error_final .* worse")
+        # The verdict table first; the timings after it, under their own heading, never a verdict.
+        lines = r.stdout.splitlines()
+        table = lines.index(next(l for l in lines if l.startswith("case ") and l.endswith("verdict")))
+        heading = lines.index(next(l for l in lines if l.startswith("timings (")))
+        worse = lines.index(next(l for l in lines if "constraint_error_final" in l))
+        self.assertLess(table, worse)
+        self.assertLess(worse, heading)
+        timed = [k for k, l in enumerate(lines) if "wall_per_step" in l]
+        self.assertTrue(timed)
+        self.assertTrue(all(k > heading for k in timed), r.stdout)
+        self.assertTrue(all(not lines[k].rstrip().endswith(("ratio", "same", "worse")) for k in timed), r.stdout)
         self.assertTrue(os.path.exists(os.path.join(self.dir, "b", "regress.png")))
         with h5py.File(os.path.join(self.dir, "b", "regress.h5")) as f:
             self.assertIn(b"worse", list(f["verdict"][()]))

@@ -60,6 +60,61 @@ TEST(Regress, ToleranceAndDirection) {
   EXPECT_EQ(compare_value(higher, loose, 1.0, 1.4).verdict, Verdict::Same);  // the case's override
 }
 
+// The console: the verdict table first, then the timings apart, under their own heading.
+TEST(Regress, TheConsoleShowsTheVerdictsFirstAndTheTimingsApart) {
+  Report rep;
+  const auto add = [&](const std::string& c, const std::string& m, double base, double now, Verdict v) {
+    Row r;
+    r.case_name = c;
+    r.metric = m;
+    r.baseline = base;
+    r.now = now;
+    r.change = v == Verdict::Ratio ? now / base : now - base;
+    r.allowed = 0.01;
+    r.verdict = v;
+    rep.rows.push_back(r);
+  };
+  add("chain_xpbd", "wall_per_step", 2e-4, 3e-4, Verdict::Ratio);  // a timing row listed first
+  add("chain_xpbd", "constraint_error_final", 0.1, 0.2, Verdict::Worse);
+  add("chain_pbd", "wall_per_step", 1e-4, 1e-4, Verdict::Ratio);
+  add("chain_pbd", "energy_change", 1.0, 1.0, Verdict::Same);
+  add("spring_xpbd", "tip_displacement", 0.5, 0.4, Verdict::Better);
+  rep.worse = 1;
+  rep.better = 1;
+  rep.same = 1;
+  const std::string text = report_table(rep);
+  const size_t header = text.find("verdict\n");
+  const size_t worse = text.find("constraint_error_final");
+  const size_t better = text.find("tip_displacement");
+  const size_t summary = text.find("5 metrics: 1 same, 1 better, 1 worse");
+  const size_t timings = text.find("\ntimings (2): now / baseline, never a verdict");
+  ASSERT_NE(header, std::string::npos) << text;
+  ASSERT_NE(summary, std::string::npos) << text;
+  ASSERT_NE(timings, std::string::npos) << text;
+  EXPECT_EQ(text.find("case"), 0u) << text;  // the verdict table's header is the first line
+  EXPECT_LT(header, worse) << text;
+  EXPECT_LT(worse, better) << text;
+  EXPECT_LT(better, summary) << text;
+  EXPECT_LT(summary, timings) << text;
+  EXPECT_EQ(text.find("energy_change"), std::string::npos) << text;  // same: not a row
+  // Both timing rows, and only they, under the heading, as ratios without a verdict.
+  EXPECT_GT(text.find("wall_per_step"), timings) << text;
+  EXPECT_NE(text.find("x1.5"), std::string::npos) << text;
+  EXPECT_NE(text.find("x1\n"), std::string::npos) << text;
+  // The Markdown report: the same order.
+  const std::string md = report_markdown(rep, "header");
+  EXPECT_LT(md.find("| chain_xpbd | constraint_error_final"), md.find("## Timings")) << md;
+  EXPECT_GT(md.find("| chain_xpbd | wall_per_step"), md.find("## Timings")) << md;
+  EXPECT_LT(md.find("## Timings"), md.find("## Bitwise tier")) << md;
+  // Nothing changed and no timing: one line.
+  Report quiet;
+  quiet.rows.push_back(rep.rows[3]);
+  quiet.same = 1;
+  EXPECT_EQ(report_table(quiet),
+            "1 metrics: 1 same, 0 better, 0 worse; none changed beyond its tolerance (timings and new metrics "
+            "aside)\n");
+}
+
 TEST(Regress, TheRegistryLoadsAndBadOnesAreRefused) {
   const Registry reg = load_registry(registry_file());
   EXPECT_GE(reg.cases.size(), 10u);
