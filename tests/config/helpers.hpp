@@ -1,8 +1,6 @@
 // Shared helpers of the config tests.
 #pragma once
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "config/config.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace pbdbench::config::testing {
 
@@ -63,27 +62,9 @@ inline std::vector<Override> sets(const std::vector<std::string>& texts) {
 }
 
 // A fresh directory under the system's temporary directory, removed with the object.
-class TempDir {
+class TempDir : public pbdbench::testing::TempDir {
  public:
-  explicit TempDir(const std::string& name) {
-    path_ = std::filesystem::temp_directory_path() /
-            ("pbdbench_config_" + name + "_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(path_);
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::filesystem::path& path() const { return path_; }
-  std::filesystem::path write(const std::string& name, const std::string& text) const {
-    const std::filesystem::path p = path_ / name;
-    std::ofstream(p) << text;
-    return p;
-  }
-
- private:
-  std::filesystem::path path_;
+  explicit TempDir(const std::string& name) : pbdbench::testing::TempDir("config_" + name) {}
 };
 
 }  // namespace pbdbench::config::testing

@@ -11,6 +11,7 @@
 #include "core/constraint_functions.hpp"
 #include "regress/regress.hpp"
 #include "solvers/solver.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace pbdbench::regress {
 namespace {
@@ -18,12 +19,8 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("pbdbench_test_regress_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+// Each test's files in a folder of its own (unique to the process, removed after the test).
+using TempDir = pbdbench::testing::TempDir;
 
 MetricSpec metric(Worse worse, double rel, double abs) {
   MetricSpec m;
@@ -119,7 +116,7 @@ TEST(Regress, TheRegistryLoadsAndBadOnesAreRefused) {
   const Registry reg = load_registry(registry_file());
   EXPECT_GE(reg.cases.size(), 10u);
   EXPECT_NE(reg.metric("constraint_error_final"), nullptr);
-  const fs::path dir = scratch("registry");
+  const TempDir dir("regress_registry");
   auto error_of = [&](const std::string& text) {
     std::ofstream(dir / "cases.toml") << text;
     try {
@@ -220,7 +217,7 @@ std::vector<std::string> worse_metrics(const std::string& case_name,
   for (const CaseSpec& k : reg.cases)
     if (k.name == case_name) c = &k;
   EXPECT_NE(c, nullptr) << case_name;
-  const fs::path dir = scratch(case_name);
+  const TempDir dir("regress_" + case_name);
   Baseline base;
   const CaseResult good = measure_case(reg, *c, dir / "good", true);
   base.values[c->name] = good.values;
@@ -266,7 +263,7 @@ TEST(Regress, AStaleVelocityIsCaughtByTheEnergy) {
 TEST(Regress, BaselinesRoundTripAndTheHashIsDeterministic) {
   const Registry reg = load_registry(registry_file());
   const CaseSpec& c = reg.cases.front();
-  const fs::path dir = scratch("roundtrip");
+  const TempDir dir("regress_roundtrip");
   const CaseResult a = measure_case(reg, c, dir / "a", true);
   const CaseResult b = measure_case(reg, c, dir / "b", true);
   EXPECT_EQ(a.hash, b.hash);  // the same build, the same bits
