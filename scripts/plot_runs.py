@@ -4,11 +4,15 @@
     plot_runs.py RUN.h5 [RUN.h5 ...] [-o OUT.png] [--series a,b,...]
 
 The standard panel: constraint error (max solid, RMS dashed; log scale), volume drift (tets
-solid, closed surface dashed), energies (kinetic, potential, elastic, total) and the drift of
-the total energy relative to its start. Each run gets one colour, labelled by the configuration
-keys whose values differ between the runs (solver name, iterations, substeps, ...). An exploded
-run is marked with an x at its explosion time and "(exploded)" in its label; an incomplete or
-failed run says so in its label. Series that are NaN throughout, in every run, are left out.
+solid, closed surface dashed), energies (kinetic, potential, elastic, total; the total alone
+for more than three runs) and the drift of the total energy relative to its start. Each run gets one colour, labelled by the configuration
+keys whose values differ between the runs (solver name, iterations, substeps, ...), and its own
+marker. An exploded run is marked with an x at its explosion time and "(exploded)" in its label;
+each panel's axis is set from the runs that did not explode, and the label of an exploded run
+whose line leaves it says where ("off the axis in: energy"). A run whose line lies on another's
+(within 1 % of the axis's height everywhere) says so in its label ("= LABEL in: energy", or
+"identical to LABEL"). An incomplete or failed run says so in its label. Series that are NaN
+throughout, in every run, are left out, and so is a panel with nothing to draw.
 
 --series plots the named series instead, one panel each (the norm of a 3-vector series).
 The output format follows the extension of OUT (PNG by default).
@@ -24,8 +28,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import plot_axes  # noqa: E402
 import runfile  # noqa: E402
 
+MANY_RUNS = 3  # beyond this many runs, the energy panel draws the total energy alone
 ENERGY_STYLES = [("kinetic_energy", ":", "kinetic"), ("potential_energy", "-.", "potential"),
                  ("elastic_energy", (0, (1, 3)), "elastic"), ("total_energy", "-", "total")]
 
@@ -78,10 +84,15 @@ def explosion_point(run, y):
     return te, y[i]
 
 
+SERIES_NAMES = {name: short for name, _, short in ENERGY_STYLES} | {
+    "constraint_error_max": "max", "constraint_error_rms": "RMS", "volume_drift": "tets",
+    "surface_volume_drift": "surface"}
+
+
 def plot_series(ax, runs, colors, name, style="-", transform=None, log=False):
-    """Plots one series of every run on ax; returns True when something was drawn."""
-    drawn = False
-    for run, color in zip(runs, colors):
+    """Plots one series of every run on ax; returns the curves drawn, [(run index, t, y)]."""
+    curves = []
+    for k, (run, color) in enumerate(zip(runs, colors)):
         t = run.series.get("time")
         y = values(run, name)
         if t is None or y is None or not len(y) or np.all(np.isnan(y)):
@@ -92,14 +103,16 @@ def plot_series(ax, runs, colors, name, style="-", transform=None, log=False):
             y = transform(y)
         if log:
             y = np.where(y > 0, y, np.nan)  # zeros and negatives have no place on a log axis
-        ax.plot(t, y, linestyle=style, color=color, linewidth=1.2)
+        ax.plot(t, y, linestyle=style, color=color, linewidth=1.2,
+                marker=plot_axes.MARKERS[k % len(plot_axes.MARKERS)], markersize=4,
+                markevery=plot_axes.markevery(k, len(runs), n))
         mark = explosion_point(run, y)
         if mark is not None:
             ax.plot([mark[0]], [mark[1]], marker="x", color=color, markersize=9, mew=2)
-        drawn = True
-    if log and drawn:
+        curves.append((k, name, t, y))
+    if log and curves:
         ax.set_yscale("log")
-    return drawn
+    return curves
 
 
 def units_of(runs, name):
@@ -129,19 +142,21 @@ def standard_panels(runs):
     if not (all_nan(runs, "constraint_error_max") and all_nan(runs, "constraint_error_rms")):
         panels.append(("constraint error", "normalised error [1]", lambda ax, c: (
             plot_series(ax, runs, c, "constraint_error_max", "-", log=True)
-            | plot_series(ax, runs, c, "constraint_error_rms", "--", log=True)),
+            + plot_series(ax, runs, c, "constraint_error_rms", "--", log=True)),
             [("-", "max"), ("--", "RMS")]))
     vol = [(n, s, lab) for n, s, lab in [("volume_drift", "-", "tets"),
                                           ("surface_volume_drift", "--", "surface")]
            if not all_nan(runs, n)]
     if vol:
-        panels.append(("volume drift", "(V - V0) / V0 [1]", lambda ax, c: any(
-            [plot_series(ax, runs, c, n, s) for n, s, _ in vol]),
+        panels.append(("volume drift", "(V - V0) / V0 [1]", lambda ax, c: sum(
+            (plot_series(ax, runs, c, n, s) for n, s, _ in vol), []),
             [(s, lab) for _, s, lab in vol]))
     energies = [(n, s, lab) for n, s, lab in ENERGY_STYLES if not all_nan(runs, n)]
+    if len(runs) > MANY_RUNS:  # four lines a run would bury each other: the total alone
+        energies = [e for e in energies if e[0] == "total_energy"]
     if energies:
-        panels.append(("energy", "energy [J]", lambda ax, c: any(
-            [plot_series(ax, runs, c, n, s) for n, s, _ in energies]),
+        panels.append(("energy", "energy [J]", lambda ax, c: sum(
+            (plot_series(ax, runs, c, n, s) for n, s, _ in energies), []),
             [(s, lab) for _, s, lab in energies]))
     if not all_nan(runs, "total_energy"):
         # Relative to |E0|; a run that starts at E0 = 0 has no relative drift: E - E0 in J.
@@ -178,6 +193,102 @@ def chosen_panels(runs, names):
     return panels
 
 
+def keep_exploded_apart(ax, runs, curves):
+    """Sets the panel's y axis from the runs that did not explode (nor, on a linear axis, blew up
+    far beyond the others: plot_axes.outliers); returns the indices of the runs whose line
+    leaves it, and the limits."""
+    log = ax.get_yscale() == "log"
+    apart = {k for k, _, _, _ in curves if runs[k].exploded}
+    if not log:
+        peaks = [max((float(np.max(np.abs(v))) for v in (plot_axes.finite(y) for kk, _, _, y in curves if kk == k)
+                      if v.size), default=np.nan) for k in range(len(runs))]
+        apart |= plot_axes.outliers(peaks)
+    kept = [y for k, _, _, y in curves if k not in apart]
+    others = [(k, y) for k, _, _, y in curves if k in apart]
+    lim = plot_axes.keep_to(ax, kept, [y for _, y in others], log)
+    if lim is None:
+        return set(), None
+    return {k for k, y in others if plot_axes.off_axis(y, lim, log)}, lim
+
+
+def figure(runs, series=None, title=None):
+    """The figure of `runs` (loaded run files): the standard panel, or one panel per name of
+    `series`. Raises SystemExit with a message when there is nothing to draw."""
+    panels = chosen_panels(runs, series) if series else standard_panels(runs)
+    colors = [plt.cm.tab10(i % 10) for i in range(len(runs))]
+    labels = run_labels(runs)
+    # Draw first, keep the panels that drew something.
+    scratch = plt.figure()
+    drawn = []
+    for title_, ylabel, draw, styles in panels:
+        ax = scratch.add_subplot()
+        curves = draw(ax, colors)
+        scratch.delaxes(ax)
+        if curves:
+            drawn.append((title_, ylabel, draw, styles))
+    plt.close(scratch)
+    if not drawn:
+        raise SystemExit("plot_runs.py: nothing to plot: every series is NaN or empty")
+
+    ncols = 2 if len(drawn) > 1 else 1
+    nrows = (len(drawn) + ncols - 1) // ncols
+    fig, axes = plt.subplots(nrows, ncols, figsize=(6.4 * ncols, 3.6 * nrows + 0.8), squeeze=False)
+    off = {}    # run -> panels its line leaves
+    same = {}   # run -> {(other run, identical): [panels]}
+    lines = {}  # run -> how many lines it has
+    for ax, (title_, ylabel, draw, styles) in zip(axes.flat, drawn):
+        curves = draw(ax, colors)
+        for k, _, _, _ in curves:
+            lines[k] = lines.get(k, 0) + 1
+        gone, lim = keep_exploded_apart(ax, runs, curves)
+        for k in gone:
+            off.setdefault(k, []).append(title_)
+        log = ax.get_yscale() == "log"
+        for name in dict.fromkeys(c[1] for c in curves):
+            of_name = [c for c in curves if c[1] == name]
+            pairs = plot_axes.coincident([(t, y) for _, _, t, y in of_name], lim, log)
+            several = len({c[1] for c in curves}) > 1  # name the series when the panel has several
+            where = f"{title_} ({SERIES_NAMES.get(name, name)})" if several else title_
+            for j, (i, identical) in pairs.items():
+                panels_ = same.setdefault(of_name[j][0], {}).setdefault((of_name[i][0], identical), [])
+                if where not in panels_:
+                    panels_.append(where)
+        ax.set_title(title_)
+        ax.set_xlabel(f"time [{units_of(runs, 'time') or 's'}]")
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        if styles:
+            handles = [plt.Line2D([], [], color="0.3", linestyle=s) for s, _ in styles]
+            ax.legend(handles, [lab for _, lab in styles], fontsize=8, loc="best")
+    for ax in list(axes.flat)[len(drawn):]:
+        fig.delaxes(ax)
+
+    shown = list(labels)
+    for k in range(len(runs)):
+        notes = []
+        for (i, identical), where in same.get(k, {}).items():
+            if identical and len(where) == lines.get(k, 0):  # every line of the run
+                notes.append(f"identical to {labels[i]}")
+            else:
+                notes.append(f"{'identical to' if identical else '='} {labels[i]} in: {', '.join(where)}")
+        if k in off:
+            notes.append(f"off the axis in: {', '.join(off[k])}")
+        if notes:
+            shown[k] += " (" + "; ".join(notes) + ")"
+    handles = [plt.Line2D([], [], color=c, linewidth=2, marker=plot_axes.MARKERS[k % len(plot_axes.MARKERS)],
+                          markersize=5) for k, c in enumerate(colors)]
+    if any(r.exploded for r in runs):
+        handles.append(plt.Line2D([], [], color="0.3", marker="x", linestyle="none", mew=2))
+        shown.append("explosion")
+    ncol = 1 if any(len(s) > 60 for s in shown) else min(len(shown), 3)
+    fig.legend(handles, shown, loc="lower center", ncol=ncol, fontsize=8 if ncol == 1 else 9, frameon=False)
+    scenario = plot_axes.shown_name(runs[0].attrs.get("scenario", ""))
+    fig.suptitle(title or (f"scenario {scenario}" if scenario else ""))
+    legend_rows = (len(shown) + ncol - 1) // ncol
+    fig.tight_layout(rect=(0, min(0.05 + 0.035 * legend_rows, 0.45), 1, 0.96))
+    return fig
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -199,48 +310,21 @@ def main(argv=None):
             print(f"plot_runs.py: {run.path} has no /series/time", file=sys.stderr)
             return 1
 
-    if args.series:
-        panels = chosen_panels(runs, [s.strip() for s in args.series.split(",") if s.strip()])
-    else:
-        panels = standard_panels(runs)
-    if not panels:
-        print("plot_runs.py: nothing to plot: every series is NaN or empty", file=sys.stderr)
-        return 1
-
-    colors = [plt.cm.tab10(i % 10) for i in range(len(runs))]
-    labels = run_labels(runs)
-    ncols = 2 if len(panels) > 1 else 1
-    nrows = (len(panels) + ncols - 1) // ncols
-    fig, axes = plt.subplots(nrows, ncols, figsize=(6.4 * ncols, 3.6 * nrows + 0.8),
-                             squeeze=False)
-    for ax, (title, ylabel, draw, styles) in zip(axes.flat, panels):
-        draw(ax, colors)
-        ax.set_title(title)
-        ax.set_xlabel(f"time [{units_of(runs, 'time') or 's'}]")
-        ax.set_ylabel(ylabel)
-        ax.grid(True, alpha=0.3)
-        if styles:
-            handles = [plt.Line2D([], [], color="0.3", linestyle=s) for s, _ in styles]
-            ax.legend(handles, [lab for _, lab in styles], fontsize=8, loc="best")
-    for ax in list(axes.flat)[len(panels):]:
-        ax.set_visible(False)
-
-    handles = [plt.Line2D([], [], color=c, linewidth=2) for c in colors]
-    if any(r.exploded for r in runs):
-        handles.append(plt.Line2D([], [], color="0.3", marker="x", linestyle="none", mew=2))
-        labels = labels + ["explosion"]
-    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 3), fontsize=9,
-               frameon=False)
-    scenario = runs[0].attrs.get("scenario", "")
-    fig.suptitle(args.title or (f"scenario {scenario}" if scenario else ""))
-    legend_rows = (len(labels) + 2) // 3
-    fig.tight_layout(rect=(0, min(0.05 + 0.04 * legend_rows, 0.4), 1, 0.96))
+    series = [s.strip() for s in args.series.split(",") if s.strip()] if args.series else None
+    try:
+        fig = figure(runs, series, args.title)
+    except SystemExit as e:
+        if isinstance(e.code, str):
+            print(e.code, file=sys.stderr)
+            return 1
+        raise
     try:
         fig.savefig(args.output, dpi=120)
     except (OSError, ValueError) as e:
         print(f"plot_runs.py: cannot write {args.output}: {e}", file=sys.stderr)
         return 1
-    plt.close(fig)
+    finally:
+        plt.close(fig)
     print(f"wrote {args.output}")
     return 0
 
