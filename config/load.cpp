@@ -845,6 +845,9 @@ void set_solver_option(SolverOptions& o, const std::string& path, const Value& v
   else if (path == "solver.ref.max_steps") o.ref_max_steps = static_cast<long>(whole());
   else if (path == "solver.ref.max_newton") o.ref_max_newton = static_cast<int>(whole());
   else if (path == "solver.ref.ignore_colliders") o.ref_ignore_colliders = flag();
+  else if (path == "solver.ref.barrier_distance") o.ref_barrier_distance = number();
+  else if (path == "solver.ref.barrier_stiffness") o.ref_barrier_stiffness = number();
+  else if (path == "solver.ref.friction_velocity") o.ref_friction_velocity = number();
   else if (path == "solver.global.tolerance") o.global_tolerance = number();
   else if (path == "solver.global.max_iterations") o.global_max_iterations = static_cast<int>(whole());
   else if (path == "solver.global.regularization") o.global_regularization = number();

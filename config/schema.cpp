@@ -554,8 +554,15 @@ const std::vector<KeySpec>& common_keys() {
         integer("solver.ref.max_newton", so.ref_max_newton, within(1, 100000),
                 "reference: Newton iterations allowed per nonlinear solve"),
         boolean("solver.ref.ignore_colliders", so.ref_ignore_colliders,
-                "reference: run a scene that has colliders without its contacts (the references "
-                "have none yet; the run file records this key)"),
+                "reference: run a scene that has colliders without its contacts (ref-be "
+                "simulates them, the other references refuse them; the run file records this key)"),
+        real("solver.ref.barrier_distance", so.ref_barrier_distance, "m", above(0),
+             "ref-be with contact: d_hat, the IPC barrier acts on gaps below this"),
+        real("solver.ref.barrier_stiffness", so.ref_barrier_stiffness, "N/m", at_least(0),
+             "ref-be with contact: kappa, the barrier's stiffness; 0 = the heaviest dynamic "
+             "particle's weight per d_hat"),
+        real("solver.ref.friction_velocity", so.ref_friction_velocity, "m/s", above(0),
+             "ref-be with contact: eps_v, friction is smoothed to 0 below this sliding speed"),
         real("solver.global.tolerance", so.global_tolerance, "m", above(0),
              "global-*: converged when the step's KKT residual, in position units, is below this"),
         integer("solver.global.max_iterations", so.global_max_iterations, within(1, 1000000),
