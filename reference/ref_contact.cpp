@@ -4,8 +4,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -262,7 +260,6 @@ class RefBeContact final : public Solver {
       ++report.linear_setups;
       ++report.cholesky_factorizations;
       if (llt_.info() != Eigen::Success) {
-        if (std::getenv("PBDBENCH_DEBUG_IPC")) std::fprintf(stderr, "projected\n");
         derivatives(model, q, x_, t1, contacts, true, grad, &H);
         llt_.compute(H);
         ++report.linear_setups;
@@ -328,10 +325,6 @@ class RefBeContact final : public Solver {
         if (cuts > 60) break;
       }
       report.line_search_cuts += cuts;
-      if (std::getenv("PBDBENCH_DEBUG_IPC"))
-        {std::fprintf(stderr, "it %d |p| %.3e alpha %.3e cuts %d E %.17g contacts %zu gaps", it, step_norm, alpha, cuts, E, contacts.size());
-        for (const Contact& c : contacts) std::fprintf(stderr, " %s%d-%d:%.3e", to_string(c.kind), c.a, c.b, barrier::gap(model, c, x_, t1).d);
-        std::fprintf(stderr, " |g| %.3e\n", grad.norm());}
       if (cuts > 60) {
         // No decrease of E even along 1e-18 of the step: E is at its round-off floor, and the
         // step is above the tolerance only by round-off. Counted, kept, never hidden.
