@@ -213,7 +213,7 @@ class RefBeContact final : public Solver {
 
   // Throws when some gap at x (time t) is <= 0, naming the first.
   void require_separated(const Model& model, const Points& x, double t, const char* when) const {
-    for (const Contact& c : find_contacts(model, x, t, 0.0)) {
+    for (const Contact& c : find_contacts(model, x, t, d_hat_)) {
       const double d = barrier::gap(model, c, x, t).d;
       if (d <= 0.0) {
         std::ostringstream os;
@@ -221,6 +221,29 @@ class RefBeContact final : public Solver {
            << to_string(c.kind) << " " << c.b << ") with gap " << d
            << " m <= 0; the barrier needs every gap > 0";
         throw std::runtime_error(os.str());
+      }
+    }
+  }
+
+  // The first iterate: the previous positions, except that a dynamic particle a moving sphere
+  // comes closer to over the step (its gap against the sphere at t1 below that at t0) is carried
+  // along by the sphere's displacement, which keeps that gap as it was (a translation). Without
+  // it a sphere that moves into a resting particle within one step would make the first iterate
+  // infeasible. (Two moving spheres closing on one particle can still do that: refused below.)
+  void carry_by_moving_spheres(const Model& model, Eigen::VectorXd& q, double t0, double t1) const {
+    const std::vector<int>& dyn = energy().dynamic_particles();
+    for (const SphereCollider& s : model.spheres) {
+      if (s.motion < 0) continue;
+      const Vec3 c0 = sphere_center(model, s, t0), c1 = sphere_center(model, s, t1);
+      const Vec3 shift = c1 - c0;
+      if (shift.squaredNorm() == 0.0) continue;
+      for (size_t k = 0; k < dyn.size(); ++k) {
+        const Vec3 x = q.segment<3>(3 * static_cast<Eigen::Index>(k));
+        const double r = model.radius[static_cast<size_t>(dyn[k])];
+        const double sign = s.side == SphereSide::Outside ? 1.0 : -1.0;
+        const double R = s.side == SphereSide::Outside ? s.radius + r : s.radius - r;
+        const double g0 = sign * ((x - c0).norm() - R), g1 = sign * ((x - c1).norm() - R);
+        if (g1 < g0 && g1 < d_hat_) q.segment<3>(3 * static_cast<Eigen::Index>(k)) += shift;
       }
     }
   }
@@ -239,6 +262,7 @@ class RefBeContact final : public Solver {
     const Eigen::VectorXd q_start = q_;
     q_hat_ = q_ + h * u_;
     Eigen::VectorXd q = q_;
+    carry_by_moving_spheres(model, q, t0, t1);
     energy().positions(q, t1, x_);
     require_separated(model, x_, t1,
                       "when kinematic particles and moving colliders reach the end of the step");
