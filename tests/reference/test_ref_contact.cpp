@@ -234,6 +234,29 @@ TEST(RefBeContact, CyclicPenetrationAgreesWithTheGlobalProjection) {
   }
 }
 
+TEST(RefBeContact, MovingSphereLiftsAParticleWithoutPenetration) {
+  // A sphere rising at 1 m/s under a resting particle moves 16.7 mm a step, far more than the
+  // particle's gap: the first iterate carries the particle (ref_contact.hpp); without that the
+  // first step is refused. The particle rides on the sphere: gap > 0, velocity -> the sphere's.
+  Model m;
+  add_particle(m, Vec3(0.0, 0.1 + 0.01 + 0.5e-3, 0.0), 0.1, 0.01);
+  Motion up;
+  up.kind = MotionKind::Linear;
+  up.velocity = Vec3(0.0, 1.0, 0.0);
+  m.motions.push_back(up);
+  SphereCollider s{Vec3::Zero(), 0.1, SphereSide::Outside};
+  s.motion = 0;
+  m.spheres.push_back(s);
+  auto solver = make_solver(be_options(), m);
+  State st = rest_state(m);
+  for (int k = 0; k < 30; ++k) {
+    solver->step(m, st, 1.0 / 60.0);
+    ASSERT_GT(min_gap(m, st.x, st.time), 0.0) << k;
+  }
+  EXPECT_NEAR(st.v(0, 1), 1.0, 1e-6);
+  EXPECT_LT(st.x(0, 1) - (st.time + 0.1 + 0.01), be_options().ref_barrier_distance);
+}
+
 TEST(RefBeContact, RefusesWhatItCannotRun) {
   Model m;
   add_particle(m, Vec3(0.0, 0.005, 0.0), 1.0, 0.01);  // starts 5 mm into the plane
