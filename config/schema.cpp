@@ -681,6 +681,27 @@ const ColliderTable& collider_table() {
 
 const std::vector<KeySpec>& collider_keys() { return collider_table().keys; }
 
+const std::vector<std::string>& body_kinds() {
+  static const std::vector<std::string> kinds = {"chain", "cloth", "tet_block", "mesh"};
+  return kinds;
+}
+
+const std::vector<KeySpec>& body_placement_keys() {
+  static const std::vector<KeySpec> keys = {
+      text("body.kind", "tet_block", body_kinds(),
+           "the body's scene kind; its keys are that kind's scene keys, written without 'scene.'"),
+      vec3("body.position", Vec3::Zero(), "m", kAny,
+           "translation added to every particle after the rotation"),
+      vec3("body.rotation", Vec3::Zero(), "deg", kAny,
+           "rotation vector (axis times angle in degrees) about the body's centroid"),
+      vec3("body.velocity", Vec3::Zero(), "m/s", kAny,
+           "initial velocity of every dynamic particle (added to the kind's own)"),
+      vec3("body.angular_velocity", Vec3::Zero(), "rad/s", kAny,
+           "initial angular velocity about the body's centroid (after the placement)"),
+  };
+  return keys;
+}
+
 namespace detail {
 
 const KeySpec* find_key(const std::vector<KeySpec>& keys, const std::string& path) {
