@@ -257,6 +257,25 @@ TEST(RefBeContact, MovingSphereLiftsAParticleWithoutPenetration) {
   EXPECT_LT(st.x(0, 1) - (st.time + 0.1 + 0.01), be_options().ref_barrier_distance);
 }
 
+TEST(RefBeContact, StackOfBodiesLandsWithoutPenetration) {
+  // soft_cube_stack: three tet blocks, two of them [[body]] entries, 4 mm apart; 10 steps: the
+  // upper cubes land on the lower ones, particle against particle, and nothing penetrates.
+  const Scene sc = config::build_scene(config::load("soft_cube_stack"));
+  auto solver = make_solver(be_options(), sc.model);
+  State s = sc.initial;
+  for (int k = 0; k < 10; ++k) {
+    solver->step(sc.model, s, 1.0 / 60.0);
+    ASSERT_GT(min_gap(sc.model, s.x, s.time), 0.0) << "step " << k;
+  }
+  // Both upper cubes rest on the one below: barrier contacts between consecutive bodies (64
+  // particles each: 0-63 the scene's, 64-127 and 128-191 the [[body]] entries).
+  int between[2] = {0, 0};
+  for (const Contact& c : find_contacts(sc.model, s.x, s.time, be_options().ref_barrier_distance))
+    if (c.kind == ContactKind::Particle && c.b / 64 == c.a / 64 + 1) ++between[c.a / 64];
+  EXPECT_GT(between[0], 0);
+  EXPECT_GT(between[1], 0);
+}
+
 TEST(RefBeContact, RefusesWhatItCannotRun) {
   Model m;
   add_particle(m, Vec3(0.0, 0.005, 0.0), 1.0, 0.01);  // starts 5 mm into the plane
