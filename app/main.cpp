@@ -40,7 +40,9 @@
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
 #include "runfile/output_guard.hpp"
+#include "runfile/run_file.hpp"
 #include "runfile/series.hpp"
+#include "runfile/xdmf.hpp"
 #include "solvers/solver.hpp"
 
 namespace fs = std::filesystem;
@@ -120,8 +122,36 @@ fs::path self_executable() { return config::executable_path(); }
 // A script of the data folder's scripts/ (config/data_dir.hpp).
 fs::path script_path(const char* name) { return config::data_dir() / "scripts" / name; }
 
+// The run file's own scene: its stored configuration, loaded as the scenario file it came from
+// (relative mesh paths resolve from there).
+Model model_of_run(const fs::path& run_file) {
+  const RunFileData d = read_run_file(run_file, false);
+  auto cfg_text = d.attributes.find("config");
+  if (cfg_text == d.attributes.end()) throw std::runtime_error(run_file.string() + ": no stored configuration");
+  auto scenario_file = d.attributes.find("scenario_file");
+  const fs::path file = scenario_file != d.attributes.end() ? fs::path(scenario_file->second) : run_file;
+  return config::build_scene(config::load_text(cfg_text->second, file)).model;
+}
+
+void print_export(const XdmfSummary& x) {
+  std::cout << fmt::format("ParaView: {} ({} frames; {} tets, {} triangles, {} edges{}; fields in {})\n",
+                           x.xdmf.string(), x.frames, x.tets, x.triangles, x.edges,
+                           x.collider_points > 0 ? ", colliders" : "", x.data.filename().string());
+}
+
+int cmd_export(const std::vector<std::string>& files, const std::string& out) {
+  if (files.empty()) throw CompareInputError("export: name at least one run file");
+  if (!out.empty() && files.size() > 1) throw CompareInputError("export: --out takes one run file, not " + std::to_string(files.size()));
+  for (const std::string& f : files) {
+    const fs::path run_file(f);
+    if (!is_run_file(run_file)) throw CompareInputError(f + ": not a pbdbench run file");
+    print_export(write_xdmf(run_file, model_of_run(run_file), out.empty() ? default_xdmf_path(run_file) : fs::path(out)));
+  }
+  return kExitOk;
+}
+
 int cmd_run(const std::string& scenario, const std::string& solver, const std::vector<std::string>& sets,
-            const std::string& out_arg, bool quiet, bool force) {
+            const std::string& out_arg, bool quiet, bool force, bool xdmf) {
   std::vector<config::Override> overrides = parse_overrides(sets);
   if (!solver.empty()) overrides.insert(overrides.begin(), {"solver.name", solver});
   const config::Config cfg = config::load(scenario, overrides);
@@ -137,12 +167,22 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   control.force = force;
   control.notice = [](const std::string& text) { std::cerr << "pbdbench: " << text << "\n"; };
   const RunOutcome r = run_config(cfg, out, control);
-  const char* status = to_string(r.status);
+  std::string status = to_string(r.status);
+  if (!r.warnings.empty())
+    status += fmt::format(" with {} warning{}", r.warnings.size(), r.warnings.size() == 1 ? "" : "s");
   std::cout << fmt::format("{} [{}]: {} after {}/{} steps in {:.2f} s ({:.2f} s in the solver) -> {}\n",
                            cfg.scenario_name, solver_name, status, r.steps_completed, r.steps_planned,
                            r.wall_time, r.solver_time, out.string());
   if (!r.reason.empty()) std::cout << "  " << r.reason << "\n";
+  for (const std::string& w : r.warnings) std::cout << "  WARNING " << w << "\n";
   if (!quiet) std::cout << summary_table({{cfg.scenario_name + " " + solver_name, out}});
+  if (xdmf && r.steps_completed > 0) {
+    try {
+      print_export(write_xdmf(out, config::build_scene(cfg).model, default_xdmf_path(out)));
+    } catch (const std::exception& e) {
+      std::cerr << "pbdbench: no ParaView file: " << e.what() << "\n";
+    }
+  }
   switch (r.status) {
     case RunStatus::Complete: return kExitOk;
     case RunStatus::Exploded: return kExitExploded;
@@ -216,7 +256,7 @@ int cmd_list() {
 
 // A scenario (file or catalog name) is described with its resolved values and their sources; a
 // scene kind (or any name with --kind) with its keys. Scenario names win: "spring" is both.
-int cmd_describe(const std::string& what, const std::vector<std::string>& sets, bool kind) {
+int cmd_describe(const std::string& what, const std::vector<std::string>& sets, bool kind, bool all) {
   bool is_kind = false;
   for (const auto& k : config::scene_kinds()) is_kind = is_kind || k.name == what;
   bool is_scenario = !kind;
@@ -232,7 +272,7 @@ int cmd_describe(const std::string& what, const std::vector<std::string>& sets, 
     return kExitOk;
   }
   const config::Config cfg = config::load(what, parse_overrides(sets));
-  std::cout << config::describe_config(cfg);
+  std::cout << config::describe_config(cfg, all, 100);
   return kExitOk;
 }
 
@@ -378,6 +418,13 @@ int main(int argc, char** argv) {
   run->add_flag("--force", force,
                 "Run even when the planned run does not fit this machine (memory, disk, more than a day)");
 
+  bool no_xdmf = false;
+  run->add_flag("--no-xdmf", no_xdmf, "Do not write the ParaView description (RUN.xdmf and RUN.viz.h5) beside the run file");
+  auto* export_sub = app.add_subcommand(
+      "export", "Write a run file's ParaView description: RUN.xdmf over its frames, with RUN.viz.h5 beside it");
+  export_sub->add_option("files", files, "Run files")->required();
+  export_sub->add_option("--out", out, "The XDMF file to write (one run file only; default RUN.xdmf)");
+
   auto* sweep = app.add_subcommand("sweep", "Run a sweep file's grid in parallel, skipping runs already complete");
   sweep->add_option("file", file, "Sweep file (TOML)")->required();
   sweep->add_option("--out", out, "Directory for the run files (default results/sweeps/<name>)");
@@ -396,6 +443,8 @@ int main(int argc, char** argv) {
   describe->add_option("--set", sets, "Overrides to apply before describing (repeatable)");
   bool kind = false;
   describe->add_flag("--kind", kind, "Describe the scene kind of this name, not a scenario");
+  bool describe_all = false;
+  describe->add_flag("--all", describe_all, "Show the keys of every solver, not only the chosen one's");
 
   auto* summary = app.add_subcommand("summary", "Print a table of what run files measured");
   summary->add_option("files", files, "Run files");
@@ -522,10 +571,11 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*run) return cmd_run(scenario, solver, sets, out, quiet, force);
+    if (*run) return cmd_run(scenario, solver, sets, out, quiet, force, !no_xdmf);
+    if (*export_sub) return cmd_export(files, out);
     if (*sweep) return cmd_sweep(file, out, jobs, force, sweep_array, sets, quiet, argc, argv);
     if (app.got_subcommand("list")) return cmd_list();
-    if (*describe) return cmd_describe(scenario, sets, kind);
+    if (*describe) return cmd_describe(scenario, sets, kind, describe_all);
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);
@@ -577,6 +627,10 @@ int main(int argc, char** argv) {
       if (markdown) {
         std::cout << series_markdown();
       } else {
+        std::cout << "Each series is a dataset of the run file: /series/<name>, one row per step (row 0 the\n"
+                     "initial state), shape (rows,) or (rows, 3); frames are in /frames (time, positions,\n"
+                     "velocities), the model in /model (results/README.md has the whole layout).\n\n";
+        std::cout << fmt::format("{:<22} {:<3} {:<10} {}\n", "name", "dim", "units", "doc");
         for (const SeriesSpec& s : series_table())
           std::cout << fmt::format("{:<22} {:<3} {:<10} {}\n", s.name, s.width == 1 ? "1" : "3", s.units, s.doc);
         for (const GroupSeriesSpec& g : group_series_table())

@@ -169,7 +169,10 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
   std::vector<CaseResult> results;
   for (const CaseSpec* c : cases) {
     results.push_back(measure_case(reg, *c, outcome.runs, force, cmd.control));
-    log << fmt::format("  {}: {}\n", c->name, results.back().status);
+    const CaseResult& r = results.back();
+    log << fmt::format("  {}: {}{}\n", c->name, r.status,
+                       r.warnings.empty() ? "" : fmt::format(" with {} warning{}", r.warnings.size(),
+                                                             r.warnings.size() == 1 ? "" : "s"));
   }
   write_text(outcome.out / "regress.json", results_json(results));
 
@@ -207,9 +210,17 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
       "**worse**; timings are ratios, never verdicts.",
       tier, cases.size(), registry_shown.generic_string(), base_file.generic_string(),
       base.commit.empty() ? "an unknown build" : base.commit, build_info().git_commit);
-  write_text(outcome.out / "regress.md", report_markdown(rep, header));
+  // The cases' warnings (metrics/health.hpp): what a reader would call a failure though no
+  // explosion limit was crossed, listed apart from the verdicts.
+  std::string warnings;
+  for (const CaseResult& r : results)
+    for (const std::string& w : r.warnings) warnings += fmt::format("  {}: WARNING {}\n", r.name, w);
+  write_text(outcome.out / "regress.md",
+             report_markdown(rep, header) +
+                 (warnings.empty() ? "" : "\n## Warnings of the runs\n\n```\n" + warnings + "```\n"));
   write_report_h5(outcome.out / "regress.h5", rep);
   out << report_table(rep);
+  if (!warnings.empty()) out << "warnings of the runs:\n" << warnings;
   for (const std::string& l : rep.hash_lines)
     if (l.find("differ") != std::string::npos) out << "bitwise: " << l << "\n";
   out << fmt::format("-> {}\n", (outcome.out / "regress.md").string());

@@ -6,12 +6,22 @@
 //
 //   build/benchmarks/bench_reference --benchmark_out=cost.json --benchmark_out_format=json
 //   /usr/bin/python3 scripts/fit_growth.py cost.json
+//
+// Also global-cholmod: one step of cantilever_beam and hanging_cloth (setup not timed), and the
+// projection of its Hessian blocks onto the positive semi-definite cone (reference/
+// global_newton.cpp) in the fixed-size eigen-solve it uses against the heap-allocating dynamic one
+// it used before (written here), on the same random blocks, side by side (docs/performance.md):
+//
+//   build/benchmarks/bench_reference --benchmark_filter='global|psd' --benchmark_repetitions=5
 #include <benchmark/benchmark.h>
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <fstream>
+#include <random>
 #include <string>
+#include <vector>
 
 #include "config/config.hpp"
 #include "runfile/build_info.hpp"
@@ -74,6 +84,73 @@ void BM_ReferenceStep(benchmark::State& bench, int n, int m, const char* solver)
   bench.counters["linear_seconds"] = linear * k;
 }
 
+// global-cholmod: one step of a catalog scenario from its initial state.
+void BM_GlobalStep(benchmark::State& bench, const char* scenario) {
+  config::Config cfg = config::load(scenario, {{"solver.name", "\"global-cholmod\""}});
+  const Scene scene = config::build_scene(cfg);
+  const double dt = config::run_options(cfg).dt;
+  double linear = 0.0, newton = 0.0;
+  long steps = 0;
+  for (auto _ : bench) {
+    bench.PauseTiming();
+    auto s = make_solver(config::solver_options(cfg), scene.model);
+    State state = scene.initial;
+    bench.ResumeTiming();
+    const StepReport r = s->step(scene.model, state, dt);
+    benchmark::DoNotOptimize(state.x.data());
+    linear += r.time_linear;
+    newton += static_cast<double>(r.newton_iterations);
+    ++steps;
+  }
+  const double k = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
+  bench.counters["newton_iterations"] = newton * k;
+  bench.counters["linear_seconds"] = linear * k;
+}
+
+// Random symmetric K x K blocks shaped as global-cholmod's: g g^T / eps - l H, H symmetric.
+template <int K>
+std::vector<Eigen::Matrix<double, K, K>> psd_blocks() {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> n(0.0, 1.0);
+  std::vector<Eigen::Matrix<double, K, K>> out(512);
+  for (auto& H : out) {
+    Eigen::Matrix<double, K, 1> g;
+    Eigen::Matrix<double, K, K> A;
+    for (int i = 0; i < K; ++i) g(i) = n(rng);
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j) A(i, j) = n(rng);
+    H = g * g.transpose() * 1e3 - 0.5 * (A + A.transpose());
+  }
+  return out;
+}
+
+// Fixed: Eigen::SelfAdjointEigenSolver<Matrix<double, K, K>> (global_newton.cpp now). Dynamic:
+// the K x K corner copied to a MatrixXd and solved there (global_newton.cpp before, for K < 12).
+template <int K, bool Dynamic>
+void BM_Psd(benchmark::State& bench) {
+  const auto blocks = psd_blocks<K>();
+  double sink = 0.0;
+  for (auto _ : bench) {
+    for (const auto& B : blocks) {
+      if constexpr (Dynamic) {
+        const Eigen::MatrixXd sub = B;
+        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(sub);
+        const Eigen::MatrixXd P =
+            eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+        sink += P(0, 0);
+      } else {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, K, K>> eig(B);
+        const Eigen::Matrix<double, K, K> P =
+            eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+        sink += P(0, 0);
+      }
+    }
+  }
+  benchmark::DoNotOptimize(sink);
+  bench.counters["blocks_per_s"] = benchmark::Counter(static_cast<double>(blocks.size()) * bench.iterations(),
+                                                      benchmark::Counter::kIsRate);
+}
+
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");
   for (std::string line; std::getline(f, line);)
@@ -92,6 +169,14 @@ int main(int argc, char** argv) {
         ->Unit(benchmark::kMillisecond)
         ->Iterations(1)
         ->Repetitions(3);
+  for (const char* scenario : {"cantilever_beam", "hanging_cloth"})
+    benchmark::RegisterBenchmark(fmt::format("global-cholmod/{}", scenario).c_str(), BM_GlobalStep, scenario)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
+  benchmark::RegisterBenchmark("psd/6/fixed", BM_Psd<6, false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/6/dynamic", BM_Psd<6, true>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/12/fixed", BM_Psd<12, false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/12/dynamic", BM_Psd<12, true>)->Unit(benchmark::kMicrosecond);
   benchmark::AddCustomContext("pbdbench_version", build_info().version);
   benchmark::AddCustomContext("git_commit", build_info().git_commit);
   benchmark::AddCustomContext("compiler", build_info().compiler);

@@ -1,14 +1,39 @@
-// Time per step of each PBD-family solver on the catalog scenes (the same scenario files the
-// tests and studies use). Each measurement steps from the same state, 10 steps into the run,
-// so that the warm-up is not counted; the build and machine go into the benchmark's context.
+// The PBD core's speed: projections per second of pbd and xpbd per scene, order, constraint kind,
+// precision and thread count, beside a plain per-constraint Gauss-Seidel loop written here as the
+// baseline of how PBD is commonly implemented; and what the harness (metrics, frames, HDF5) adds
+// to a run. docs/performance.md reports these; every case is a row of the tables below.
 //
-//   build/benchmarks/bench_solvers --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+//   PBDBENCH_SCENARIOS=scenarios build/benchmarks/bench_solvers --benchmark_repetitions=5
+//       --benchmark_enable_random_interleaving=true --benchmark_min_time=0.2
+//       --benchmark_out=bench.json --benchmark_out_format=json
+//   /usr/bin/python3 scripts/bench_table.py bench.json
+//
+// Steady state: every scene is first run for kWarmupSteps steps (1 s) with its own solver, so that
+// a cloth hangs folded (not flat, where its bending projections are skipped); each measurement
+// steps from a copy of that state and the copy is not timed. The rate counted is
+//   Mproj/s = (model constraints x iterations x substeps) / (time in the projection sweeps),
+// the sweeps' time being StepReport::time_project for the solvers and the loop itself for the
+// baseline; `step_ms` is the whole step. Mproj_per_cpu_s (one thread) counts the same projections
+// in the thread's CPU time (the solvers: over the whole step), which other processes on a shared
+// machine do not inflate. The machine, build and thread count go into the context and the names.
 #include <benchmark/benchmark.h>
 
+#include <chrono>
+#include <cstdlib>
+#include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <map>
+#include <memory>
 #include <string>
+#include <vector>
+
+#include <time.h>
+#include <unistd.h>
 
 #include "config/config.hpp"
+#include "core/constraint_functions.hpp"
+#include "harness/runner.hpp"
 #include "runfile/build_info.hpp"
 #include "solvers/solver.hpp"
 
@@ -16,36 +41,245 @@ using namespace pbdbench;
 
 namespace {
 
-struct Case {
+constexpr int kWarmupSteps = 60;
+
+// ---------------------------------------------------------------------------------------------
+// The scenes: a catalog scenario and overrides (the same definitions the tests and studies use).
+struct SceneCase {
+  const char* id;
   const char* scenario;
-  const char* solver;
+  std::vector<config::Override> overrides;
 };
 
-// The explicit table of what is measured.
-constexpr Case kCases[] = {
-    {"hanging_chain", "pbd-seed"},   {"hanging_chain", "pbd"},   {"hanging_chain", "xpbd"},
-    {"hanging_cloth", "pbd-seed"},   {"hanging_cloth", "pbd"},   {"hanging_cloth", "xpbd"},
-    {"cantilever_beam", "pbd-seed"}, {"cantilever_beam", "pbd"}, {"cantilever_beam", "xpbd"},
-    {"balls_in_bowl", "pbd-seed"},   {"balls_in_bowl", "pbd"},   {"balls_in_bowl", "xpbd"},
+const std::vector<SceneCase>& scenes() {
+  static const std::vector<SceneCase> all = {
+      {"cloth64_distance", "hanging_cloth", {{"scene.bending", "false"}}},
+      {"cloth64", "hanging_cloth", {}},
+      {"cloth256_distance", "hanging_cloth", {{"scene.resolution", "[256, 256]"}, {"scene.bending", "false"}}},
+      {"cloth256", "hanging_cloth", {{"scene.resolution", "[256, 256]"}}},
+      {"chain", "hanging_chain", {}},
+      {"beam", "cantilever_beam", {}},
+      {"fem_beam", "cantilever_fem", {}},
+  };
+  return all;
+}
+
+// A scene in steady state: its model, the state after the warm-up, dt and its solver's settings.
+struct Warm {
+  config::Config config;
+  Scene scene;
+  State state;
+  double dt = 0.0;
+  SolverOptions options;  // the scenario's own (iterations, substeps)
 };
 
-void BM_Step(benchmark::State& bench, Case c) {
-  const config::Config cfg = config::load(c.scenario, {{"solver.name", c.solver}});
-  const Scene scene = config::build_scene(cfg);
-  const double dt = config::run_options(cfg).dt;
-  auto solver = make_solver(config::solver_options(cfg), scene.model);
-  State warm = scene.initial;
-  for (int k = 0; k < 10; ++k) solver->step(scene.model, warm, dt);
+const Warm& warm(const std::string& id) {
+  static std::map<std::string, std::unique_ptr<Warm>> cache;
+  auto it = cache.find(id);
+  if (it != cache.end()) return *it->second;
+  const SceneCase* sc = nullptr;
+  for (const SceneCase& s : scenes())
+    if (id == s.id) sc = &s;
+  auto w = std::make_unique<Warm>();
+  w->config = config::load(sc->scenario, sc->overrides);
+  w->scene = config::build_scene(w->config);
+  w->dt = config::run_options(w->config).dt;
+  w->options = config::solver_options(w->config);
+  SolverOptions o = w->options;
+  o.order = ProjectionOrder::Colored;  // the fastest way there; the state is what matters
+  auto solver = make_solver(o, w->scene.model);
+  w->state = w->scene.initial;
+  for (int k = 0; k < kWarmupSteps; ++k) solver->step(w->scene.model, w->state, w->dt);
+  return *(cache[id] = std::move(w));
+}
+
+// The model restricted to the constraints of one kind (the state's positions are the same).
+Model only_kind(const Model& model, ConstraintKind kind) {
+  Model m = model;
+  m.constraints.clear();
+  for (const Constraint& c : model.constraints)
+    if (c.kind == kind) m.constraints.push_back(c);
+  return m;
+}
+
+// The CPU time of the calling thread, s.
+double thread_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+long projections_per_step(const Model& model, const SolverOptions& o) {
+  return static_cast<long>(model.constraint_count()) * o.iterations * o.substeps;
+}
+
+// ---------------------------------------------------------------------------------------------
+// pbd and xpbd.
+struct SolverCase {
+  std::string scene;
+  std::string solver;  // pbd, xpbd
+  ProjectionOrder order;
+  Precision precision;
+  int threads;
+  int kind = -1;  // a ConstraintKind: only the constraints of that kind; -1: all
+};
+
+void BM_Solver(benchmark::State& bench, SolverCase c) {
+  const Warm& w = warm(c.scene);
+  const Model model = c.kind < 0 ? w.scene.model : only_kind(w.scene.model, static_cast<ConstraintKind>(c.kind));
+  SolverOptions o = w.options;
+  o.name = c.solver;
+  o.order = c.order;
+  o.precision = c.precision;
+  o.threads = c.threads;
+  auto solver = make_solver(o, model);
+  State s = w.state;
+  s.lambda.assign(model.constraints.size(), 0.0);
+  solver->step(model, s, w.dt);  // the first step after setup is not counted
+  double project = 0.0, total = 0.0, cpu = 0.0;
   for (auto _ : bench) {
     bench.PauseTiming();
-    State s = warm;
+    s = w.state;
     bench.ResumeTiming();
-    solver->step(scene.model, s, dt);
+    const double c0 = thread_cpu_seconds();
+    const auto t0 = std::chrono::steady_clock::now();
+    const StepReport r = solver->step(model, s, w.dt);
+    total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    cpu += thread_cpu_seconds() - c0;
+    project += r.time_project;
     benchmark::DoNotOptimize(s.x.data());
   }
-  bench.counters["particles"] = scene.model.particle_count();
-  bench.counters["constraints"] = scene.model.constraint_count();
-  bench.counters["iterations"] = config::solver_options(cfg).iterations;
+  const double n = static_cast<double>(bench.iterations());
+  bench.counters["Mproj_per_s"] = projections_per_step(model, o) * n / project * 1e-6;
+  // One thread: the rate in the thread's CPU time over the whole step (prediction, velocities
+  // included, so a lower bound on the sweeps' rate), which time taken by other processes on a
+  // shared machine does not lower as it lowers the wall-clock rate.
+  if (c.threads == 1) bench.counters["Mproj_per_cpu_s"] = projections_per_step(model, o) * n / cpu * 1e-6;
+  bench.counters["step_ms"] = total / n * 1e3;
+  bench.counters["constraints"] = model.constraint_count();
+  bench.counters["threads"] = c.threads;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The baseline: a plain per-constraint Gauss-Seidel loop, as PBD is commonly written (an array
+// of constraint records, positions as 3-vectors, the inverse masses looked up per projection,
+// the dihedral angle by acos), in the model's order, in double, one thread. It projects the
+// predicted positions of the steady state, `iterations` sweeps, the distance and bending
+// constraints of the scene (distance: Mueller et al. 2007, sec. 3.3; bending: appendix A;
+// xpbd: Macklin et al. 2016, eq. 18).
+struct PlainConstraint {
+  ConstraintKind kind;
+  int p[4];
+  double rest, stiffness, compliance;
+};
+
+void plain_sweeps(const std::vector<PlainConstraint>& cs, const std::vector<double>& w,
+                  std::vector<Vec3>& x, std::vector<double>& lambda, bool xpbd, double h,
+                  int iterations) {
+  for (int it = 0; it < iterations; ++it) {
+    for (size_t j = 0; j < cs.size(); ++j) {
+      const PlainConstraint& c = cs[j];
+      double C = 0.0;
+      Vec3 g[4];
+      int count = 2;
+      if (c.kind == ConstraintKind::Distance) {
+        const Vec3 d = x[static_cast<size_t>(c.p[1])] - x[static_cast<size_t>(c.p[0])];
+        const double len = d.norm();
+        if (len == 0.0) continue;
+        C = len - c.rest;
+        g[1] = d / len;
+        g[0] = -g[1];
+      } else {
+        count = 4;
+        const Vec3 &x0 = x[static_cast<size_t>(c.p[0])], &x1 = x[static_cast<size_t>(c.p[1])];
+        const Vec3 e = x1 - x0, a = x[static_cast<size_t>(c.p[2])] - x0, b = x[static_cast<size_t>(c.p[3])] - x0;
+        const Vec3 c1 = e.cross(a), c2 = e.cross(b);
+        const double l1 = c1.norm(), l2 = c2.norm();
+        if (l1 == 0.0 || l2 == 0.0) continue;
+        const Vec3 n1 = c1 / l1, n2 = c2 / l2;
+        const double d = std::clamp(n1.dot(n2), -1.0, 1.0);
+        const double s2 = 1.0 - d * d;
+        if (s2 < 1e-12) continue;
+        C = std::acos(d) - c.rest;
+        const Vec3 q1 = (n2 - n1 * d) / l1, q2 = (n1 - n2 * d) / l2;
+        const double f = -1.0 / std::sqrt(s2);
+        g[2] = f * q1.cross(e);
+        g[3] = f * q2.cross(e);
+        g[1] = f * (a.cross(q1) + b.cross(q2));
+        g[0] = -(g[1] + g[2] + g[3]);
+      }
+      double wsum = 0.0;
+      for (int i = 0; i < count; ++i) wsum += w[static_cast<size_t>(c.p[i])] * g[i].squaredNorm();
+      double dl;
+      if (xpbd) {
+        const double at = c.compliance / (h * h);
+        if (wsum + at == 0.0) continue;
+        dl = (-C - at * lambda[j]) / (wsum + at);
+        lambda[j] += dl;
+      } else {
+        if (wsum == 0.0) continue;
+        dl = -c.stiffness * C / wsum;
+      }
+      for (int i = 0; i < count; ++i) x[static_cast<size_t>(c.p[i])] += (w[static_cast<size_t>(c.p[i])] * dl) * g[i];
+    }
+  }
+}
+
+void BM_Plain(benchmark::State& bench, std::string scene, std::string solver) {
+  const Warm& w = warm(scene);
+  const Model& m = w.scene.model;
+  std::vector<PlainConstraint> cs;
+  for (const Constraint& c : m.constraints)
+    cs.push_back({c.kind, {c.particles[0], c.particles[1], c.particles[2], c.particles[3]}, c.rest,
+                  c.stiffness, c.compliance});
+  // The predicted positions of the steady state: x + h v + h^2 g for the dynamic particles.
+  const double h = w.dt / w.options.substeps;
+  std::vector<Vec3> predicted(static_cast<size_t>(m.particle_count()));
+  for (int i = 0; i < m.particle_count(); ++i) {
+    predicted[static_cast<size_t>(i)] = w.state.x.row(i).transpose();
+    if (m.inv_mass[static_cast<size_t>(i)] > 0.0)
+      predicted[static_cast<size_t>(i)] += h * (Vec3(w.state.v.row(i).transpose()) + h * m.gravity);
+  }
+  std::vector<Vec3> x;
+  std::vector<double> lambda;
+  double wall = 0.0, cpu = 0.0;
+  for (auto _ : bench) {
+    bench.PauseTiming();
+    x = predicted;
+    lambda.assign(cs.size(), 0.0);
+    bench.ResumeTiming();
+    const double c0 = thread_cpu_seconds();
+    const auto t0 = std::chrono::steady_clock::now();
+    plain_sweeps(cs, m.inv_mass, x, lambda, solver == "xpbd", h, w.options.iterations);
+    wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    cpu += thread_cpu_seconds() - c0;
+    benchmark::DoNotOptimize(x.data());
+  }
+  const double n = static_cast<double>(bench.iterations());
+  const double projections = static_cast<double>(cs.size()) * w.options.iterations * n;
+  bench.counters["Mproj_per_s"] = projections / wall * 1e-6;
+  bench.counters["Mproj_per_cpu_s"] = projections / cpu * 1e-6;
+  bench.counters["constraints"] = m.constraint_count();
+  bench.counters["threads"] = 1;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The harness: a whole run (metrics, frames and HDF5 appends at the default logging) against the
+// time inside solver.step(). overhead = (run wall time - solver time) / run wall time.
+void BM_Harness(benchmark::State& bench, std::string scenario, std::vector<config::Override> sets) {
+  sets.push_back({"time.duration", "0.5"});
+  const config::Config cfg = config::load(scenario, sets);
+  const std::filesystem::path out =
+      std::filesystem::temp_directory_path() / ("pbdbench_bench_harness_" + std::to_string(getpid()) + ".h5");
+  double wall = 0.0, solver = 0.0;
+  for (auto _ : bench) {
+    const RunOutcome r = run_config(cfg, out);
+    wall += r.wall_time;
+    solver += r.solver_time;
+    std::filesystem::remove(out);
+  }
+  bench.counters["overhead_pct"] = 100.0 * (wall - solver) / wall;
+  bench.counters["run_s"] = wall / static_cast<double>(bench.iterations());
 }
 
 std::string cpu_model() {
@@ -55,18 +289,67 @@ std::string cpu_model() {
   return "unknown";
 }
 
+std::string name_of(const SolverCase& c) {
+  std::string n = "solver/" + c.scene;
+  if (c.kind >= 0) n += "/" + std::string(to_string(static_cast<ConstraintKind>(c.kind)));
+  return n + "/" + c.solver + "/" + to_string(c.order) + "/" + to_string(c.precision) + "/t" +
+         std::to_string(c.threads);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  for (const Case& c : kCases)
-    benchmark::RegisterBenchmark((std::string("step/") + c.scenario + "/" + c.solver).c_str(), BM_Step, c)
-        ->Unit(benchmark::kMicrosecond);
+  // The explicit table of what is measured.
+  std::vector<SolverCase> cases;
+  const std::vector<ProjectionOrder> orders = {ProjectionOrder::Sequential, ProjectionOrder::Colored,
+                                               ProjectionOrder::Jacobi};
+  for (const char* scene : {"cloth64_distance", "cloth64", "cloth256_distance", "cloth256"})
+    for (const char* solver : {"pbd", "xpbd"})
+      for (ProjectionOrder order : orders)
+        for (Precision precision : {Precision::Double, Precision::Float})
+          for (int threads : {1, 2}) cases.push_back({scene, solver, order, precision, threads});
+  for (const char* scene : {"chain", "beam"})
+    for (const char* solver : {"pbd", "xpbd"})
+      for (ProjectionOrder order : orders)
+        for (Precision precision : {Precision::Double, Precision::Float})
+          cases.push_back({scene, solver, order, precision, 1});
+  for (ProjectionOrder order : orders)
+    for (Precision precision : {Precision::Double, Precision::Float})
+      cases.push_back({"fem_beam", "xpbd", order, precision, 1});
+  // Per kind: the steady state's positions with only the constraints of one kind.
+  const std::vector<std::pair<const char*, ConstraintKind>> kinds = {
+      {"cloth64", ConstraintKind::Distance}, {"cloth64", ConstraintKind::Bending},
+      {"beam", ConstraintKind::Volume},      {"fem_beam", ConstraintKind::FemDeviatoric},
+      {"fem_beam", ConstraintKind::FemHydrostatic}};
+  for (const auto& [scene, kind] : kinds)
+    for (const char* solver : {"pbd", "xpbd"}) {
+      if (std::string(solver) == "pbd" && is_fem_kind(kind)) continue;
+      for (ProjectionOrder order : {ProjectionOrder::Sequential, ProjectionOrder::Colored})
+        for (Precision precision : {Precision::Double, Precision::Float})
+          cases.push_back({scene, solver, order, precision, 1, static_cast<int>(kind)});
+    }
+  for (const SolverCase& c : cases)
+    benchmark::RegisterBenchmark(name_of(c).c_str(), BM_Solver, c)->Unit(benchmark::kMillisecond)->UseRealTime();
+  for (const char* scene : {"cloth64_distance", "cloth64", "cloth256_distance", "cloth256", "chain"})
+    for (const char* solver : {"pbd", "xpbd"})
+      benchmark::RegisterBenchmark(("plain/" + std::string(scene) + "/" + solver).c_str(), BM_Plain,
+                                   std::string(scene), std::string(solver))
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
+  const std::vector<std::pair<std::string, std::vector<config::Override>>> runs = {
+      {"cloth64", {}}, {"cloth256", {{"scene.resolution", "[256, 256]"}}}};
+  for (const auto& [id, sets] : runs)
+    benchmark::RegisterBenchmark(("harness/" + id).c_str(), BM_Harness, std::string("hanging_cloth"), sets)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->Iterations(1);
   benchmark::AddCustomContext("pbdbench_version", build_info().version);
   benchmark::AddCustomContext("git_commit", build_info().git_commit);
   benchmark::AddCustomContext("compiler", build_info().compiler);
   benchmark::AddCustomContext("build_type", build_info().build_type);
   benchmark::AddCustomContext("cxx_flags", build_info().cxx_flags);
   benchmark::AddCustomContext("cpu_model", cpu_model());
+  benchmark::AddCustomContext("available_cores", std::to_string(available_cores()));
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

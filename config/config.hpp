@@ -155,9 +155,13 @@ SolverOptions solver_options(const Config& config);
 struct RunOptions {
   double dt = 1.0 / 60.0;  // time.dt: s
   double duration = 1.0;   // time.duration: s; steps = round(duration / dt)
-  int frame_every = 10;    // output.frame_every: write positions every k steps (and the last)
+  int frame_every = 0;     // output.frame_every: write positions and velocities every k steps
+                           // (and the last); 0: every_frame() below
   ExplosionLimits limits;  // limits.*
   long steps() const;
+  // The steps between frames: frame_every, or for 0 the steps nearest 1/60 s of simulated time
+  // (at least 1): a smooth animation at 60 frames a second of simulated time.
+  long every_frame() const;
 };
 RunOptions run_options(const Config& config);
 
@@ -168,6 +172,11 @@ RunOptions run_options(const Config& config);
 // and docs, as a plain-text table; with a Config, the values it resolved to and their sources.
 std::string describe_keys(const std::string& scene_kind);
 std::string describe_config(const Config& config);
+// The same for a reader, in `width` columns (each key on one line, its doc wrapped below it):
+// the solver's own keys only (solver.<family>.* of other solvers and the *_stiffness or
+// *_compliance keys the solver does not read are hidden unless `all`), then, per constraint
+// group of the built scene, the material value the chosen solver uses.
+std::string describe_config(const Config& config, bool all, std::size_t width);
 
 // The scenario files in scenarios_dir() and its subfolders, sorted: name ("hanging_chain",
 // "failures/zero_rest_length"), scene kind, description.

@@ -3,6 +3,7 @@
 // part of docs/scenarios.md).
 #include <algorithm>
 #include <filesystem>
+#include <sstream>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -143,6 +144,129 @@ std::string describe_config(const Config& config) {
       if (auto it = config.colliders[i].find(k.path); it != config.colliders[i].end())
         add(k, "collider." + std::to_string(i) + k.path.substr(8), it->second);
   return out + text_table(rows);
+}
+
+namespace {
+
+// Which solver reads a key: "" for every solver, else the family the key belongs to.
+bool solver_reads(const std::string& solver, const std::string& path) {
+  const bool stiffness_reader = solver == "pbd" || solver == "pbd-seed";
+  auto ends_with = [&](const char* tail) {
+    const std::string t(tail);
+    return path.size() >= t.size() && path.compare(path.size() - t.size(), t.size(), t) == 0;
+  };
+  if (path.rfind("scene.", 0) == 0) {
+    if (ends_with("_stiffness") || path == "scene.stiffness") return stiffness_reader;
+    if (ends_with("_compliance") || path == "scene.compliance" || ends_with("_damping"))
+      return !stiffness_reader;
+    return true;
+  }
+  const std::pair<const char*, const char*> families[] = {
+      {"solver.pbd.", "pbd"}, {"solver.xpbd.", "xpbd"}, {"solver.force.", "force-symplectic"},
+      {"solver.seed.", "pbd-seed"}, {"solver.ref.", "ref-"}, {"solver.global.", "global-"}};
+  for (const auto& [prefix, family] : families)
+    if (path.rfind(prefix, 0) == 0) {
+      const std::string f(family);
+      return f.back() == '-' ? solver.rfind(f, 0) == 0 : solver == f;
+    }
+  return true;
+}
+
+// Words of `text` in lines of at most `width` columns after `indent` spaces.
+std::string wrap(const std::string& text, std::size_t indent, std::size_t width) {
+  std::string out, line;
+  std::istringstream words(text);
+  std::string w;
+  const std::size_t room = width > indent + 20 ? width - indent : 20;
+  while (words >> w) {
+    if (!line.empty() && line.size() + 1 + w.size() > room) {
+      out += std::string(indent, ' ') + line + "\n";
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + w;
+  }
+  if (!line.empty()) out += std::string(indent, ' ') + line + "\n";
+  return out;
+}
+
+std::string short_source(const Source& s) {
+  if (s.file.empty()) return "default";
+  const std::string name = std::filesystem::path(s.file).filename().string();
+  return s.line > 0 ? name + ":" + std::to_string(s.line) : s.file;
+}
+
+}  // namespace
+
+std::string describe_config(const Config& config, bool all, std::size_t width) {
+  const std::string solver = config.has("solver.name") ? config.get_string("solver.name") : "";
+  std::string out = wrap(fmt::format("Scenario '{}' ({}), solver {}{}", config.scenario_name,
+                                     config.file.string(), solver,
+                                     all ? "" : "; keys that this solver does not read are hidden (--all shows them)"),
+                         0, width);
+  std::size_t hidden = 0;
+  auto add = [&](const KeySpec& k, const std::string& shown, const Entry& e) {
+    if (!all && !solver_reads(solver, k.path)) {
+      ++hidden;
+      return;
+    }
+    std::string value = format_value(e.value) + (k.units.empty() ? "" : " " + k.units);
+    const std::string from = short_source(e.source);
+    std::string head = "  " + shown + " = " + value;
+    if (head.size() + 2 + from.size() <= width)
+      out += head + std::string(width - head.size() - from.size(), ' ') + from + "\n";
+    else
+      out += wrap(shown + " = " + value, 2, width) + std::string(width > from.size() ? width - from.size() : 0, ' ') + from + "\n";
+    out += wrap(k.doc, 6, width);
+  };
+  for (const KeySpec& k : common_keys())
+    if (config.has(k.path)) add(k, k.path, config.at(k.path));
+  if (config.has("scene.kind"))
+    if (const SceneKindInfo* info = detail::find_kind(config.get_string("scene.kind")))
+      for (const KeySpec& k : info->keys)
+        if (config.has(k.path)) add(k, k.path, config.at(k.path));
+  for (std::size_t i = 0; i < config.colliders.size(); ++i)
+    for (const KeySpec& k : collider_keys())
+      if (auto it = config.colliders[i].find(k.path); it != config.colliders[i].end())
+        add(k, "collider." + std::to_string(i) + k.path.substr(8), it->second);
+  if (hidden > 0) out += fmt::format("  ({} keys of other solvers hidden)\n", hidden);
+
+  // What the solver reads for each constraint group of the scene.
+  try {
+    const Scene scene = build_scene(config);
+    const Model& m = scene.model;
+    const bool stiffness = solver == "pbd" || solver == "pbd-seed";
+    out += "\n" + wrap(fmt::format("Material as {} reads it, per constraint group ({}):", solver,
+                                    stiffness ? "PBD's stiffness k per projection, Mueller et al. 2007 sec. 3.3; "
+                                                "the *_compliance keys are not read"
+                                              : "compliance alpha (inverse stiffness, 0 = rigid); the *_stiffness "
+                                                "keys are not read"),
+                        0, width);
+    for (std::size_t g = 0; g < m.group_names.size(); ++g) {
+      double lo = 0.0, hi = 0.0;
+      int count = 0;
+      ConstraintKind kind = ConstraintKind::Distance;
+      for (const Constraint& c : m.constraints) {
+        if (c.group != g) continue;
+        const double v = stiffness ? c.stiffness : c.compliance;
+        lo = count == 0 ? v : std::min(lo, v);
+        hi = count == 0 ? v : std::max(hi, v);
+        kind = c.kind;
+        ++count;
+      }
+      if (count == 0) continue;
+      std::string value;
+      if (is_fem_kind(kind))
+        value = stiffness ? "none: pbd has no FEM material (it refuses the scene)"
+                          : fmt::format("alpha from the element's Young's modulus and Poisson ratio ({:.4g}..{:.4g})", lo, hi);
+      else
+        value = fmt::format("{} = {}", stiffness ? "k" : "alpha",
+                            lo == hi ? fmt::format("{:.6g}", lo) : fmt::format("{:.6g}..{:.6g}", lo, hi));
+      out += wrap(fmt::format("{} ({} x {}): {}", m.group_names[g], count, to_string(kind), value), 2, width);
+    }
+  } catch (const std::exception& e) {
+    out += wrap(std::string("(the scene cannot be built: ") + e.what() + ")", 2, width);
+  }
+  return out;
 }
 
 std::vector<ScenarioInfo> list_scenarios() {

@@ -931,7 +931,8 @@ void set_solver_option(SolverOptions& o, const std::string& path, const Value& v
     if (!parse_precision(std::get<std::string>(value), o.precision))
       throw std::invalid_argument("solver.precision: unknown precision '" +
                                   std::get<std::string>(value) + "'");
-  } else if (path == "solver.pbd.stiffness_correction") o.pbd_stiffness_correction = flag();
+  } else if (path == "solver.threads") o.threads = static_cast<int>(whole());
+  else if (path == "solver.pbd.stiffness_correction") o.pbd_stiffness_correction = flag();
   else if (path == "solver.pbd.velocity_damping") o.pbd_velocity_damping = number();
   else if (path == "solver.xpbd.residuals") o.xpbd_residuals = flag();
   else if (path == "solver.force.contact_stiffness") o.force_contact_stiffness = number();
@@ -984,6 +985,11 @@ SolverOptions solver_options(const Config& config) {
 }
 
 long RunOptions::steps() const { return static_cast<long>(std::llround(duration / dt)); }
+
+long RunOptions::every_frame() const {
+  if (frame_every > 0) return frame_every;
+  return std::max<long>(1, static_cast<long>(std::llround((1.0 / 60.0) / dt)));
+}
 
 RunOptions run_options(const Config& config) {
   RunOptions r;

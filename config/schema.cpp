@@ -494,9 +494,13 @@ const std::vector<KeySpec>& common_keys() {
         real("solver.contact_margin", so.contact_margin, "m", at_least(0),
              "contacts closer than this at the predicted positions are built each substep"),
         text("solver.precision", to_string(so.precision), {"double", "float"},
-             "pbd, xpbd: how the state is stored: double, or float (positions, velocities, "
-             "predictions and multipliers rounded to float32 at every write, the arithmetic "
-             "double; docs/solvers.md); pbd-seed is float by its departure D10"),
+             "pbd, xpbd: the precision they compute in: double, or float (the projections in "
+             "float32, positions, velocities, predictions and multipliers stored in float32; "
+             "docs/solvers.md); pbd-seed is float by its departure D10"),
+        integer("solver.threads", so.threads, within(0, 1024),
+                "pbd, xpbd: threads of the colored and Jacobi sweeps (the results are the same "
+                "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
+                "1 by default (docs/performance.md)"),
         boolean("solver.pbd.stiffness_correction", so.pbd_stiffness_correction,
                 "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"),
         real("solver.pbd.velocity_damping", so.pbd_velocity_damping, "1", within(0, 1),
@@ -587,8 +591,9 @@ const std::vector<KeySpec>& common_keys() {
              "start of every k-th step it solves the converged step without touching the run, "
              "and the gap is logged (shadow_* series); empty: no shadow"),
         integer("shadow.every", 1, within(1, 1000000000), "the shadow solves every k-th step"),
-        integer("output.frame_every", run.frame_every, within(1, 1000000000),
-                "write positions every k steps (and the last step)"),
+        integer("output.frame_every", run.frame_every, within(0, 1000000000),
+                "write positions and velocities every k steps (and the last step); 0: the steps "
+                "nearest 1/60 s (a frame each 1/60 s of simulated time)"),
         real("limits.max_speed", lim.max_speed, "m/s", above(0),
              "a run has exploded when a particle is faster than this"),
         real("limits.max_extent_ratio", lim.max_extent_ratio, "1", above(0),

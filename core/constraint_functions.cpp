@@ -3,23 +3,29 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/constraint_stencils.hpp"
+#include "core/simd.hpp"
 #include "core/fem.hpp"
 
 namespace pbdbench {
 
-ConstraintEval eval_distance(const Vec3& x0, const Vec3& x1, double rest) {
+namespace {
+
+V3<double> v3(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+Vec3 vec3(const V3<double>& v) { return Vec3(v.x, v.y, v.z); }
+
+ConstraintEval to_eval(const StencilEval<double>& s, int count) {
   ConstraintEval e;
-  const Vec3 d = x1 - x0;
-  const double len = d.norm();
-  e.C = len - rest;
-  if (!(len > 0.0)) {
-    e.valid = false;
-    return e;
-  }
-  const Vec3 n = d / len;
-  e.grad[0] = -n;
-  e.grad[1] = n;
+  e.C = s.C;
+  e.valid = s.valid;
+  for (int i = 0; i < count; ++i) e.grad[static_cast<size_t>(i)] = vec3(s.grad[static_cast<size_t>(i)]);
   return e;
+}
+
+}  // namespace
+
+ConstraintEval eval_distance(const Vec3& x0, const Vec3& x1, double rest) {
+  return to_eval(distance_stencil(v3(x0), v3(x1), rest), 2);
 }
 
 double tet_signed_volume(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3) {
@@ -28,59 +34,18 @@ double tet_signed_volume(const Vec3& x0, const Vec3& x1, const Vec3& x2, const V
 
 ConstraintEval eval_volume(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,
                            double rest) {
-  ConstraintEval e;
-  const Vec3 e1 = x1 - x0, e2 = x2 - x0, e3 = x3 - x0;
-  e.C = e1.dot(e2.cross(e3)) / 6.0 - rest;
-  e.grad[1] = e2.cross(e3) / 6.0;
-  e.grad[2] = e3.cross(e1) / 6.0;
-  e.grad[3] = e1.cross(e2) / 6.0;
-  e.grad[0] = -(e.grad[1] + e.grad[2] + e.grad[3]);
-  e.valid = e.grad[0].squaredNorm() + e.grad[1].squaredNorm() + e.grad[2].squaredNorm() +
-                e.grad[3].squaredNorm() > 0.0;
-  return e;
+  return to_eval(volume_stencil(v3(x0), v3(x1), v3(x2), v3(x3), rest), 4);
 }
 
 double dihedral_angle(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3) {
-  const Vec3 e = x1 - x0;
-  const Vec3 c1 = e.cross(x2 - x0), c2 = e.cross(x3 - x0);
-  const double d = std::clamp(c1.normalized().dot(c2.normalized()), -1.0, 1.0);
-  return std::acos(d);
+  // The angle of bending_stencil (core/constraint_stencils.hpp), so that a constraint built with
+  // this rest value has C = 0 exactly in its rest configuration.
+  return bending_stencil(v3(x0), v3(x1), v3(x2), v3(x3), 0.0).C;
 }
 
 ConstraintEval eval_bending(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,
                             double rest) {
-  // d = n1 . n2 with n_k = c_k / |c_k|, c1 = e x a, c2 = e x b, e = x1-x0, a = x2-x0, b = x3-x0.
-  // dd/dc1 = (I - n1 n1^T) n2 / |c1| =: g1, dd/dc2 = (I - n2 n2^T) n1 / |c2| =: g2.
-  // Since c1 . g1 = e . (a x g1) = a . (g1 x e):
-  //   dd/da = g1 x e,  dd/db = g2 x e,  dd/de = a x g1 + b x g2.
-  // Hence dd/dx2 = g1 x e, dd/dx3 = g2 x e, dd/dx1 = a x g1 + b x g2, dd/dx0 = -(sum).
-  // C = acos(d) - rest, dC/dx = -dd/dx / sqrt(1 - d^2).
-  ConstraintEval e;
-  const Vec3 edge = x1 - x0, a = x2 - x0, b = x3 - x0;
-  const Vec3 c1 = edge.cross(a), c2 = edge.cross(b);
-  const double l1 = c1.norm(), l2 = c2.norm();
-  if (!(l1 > 0.0) || !(l2 > 0.0)) {
-    e.C = -rest;  // a degenerate triangle has no normal: report the angle as 0
-    e.valid = false;
-    return e;
-  }
-  const Vec3 n1 = c1 / l1, n2 = c2 / l2;
-  const double d_raw = n1.dot(n2);
-  const double d = std::clamp(d_raw, -1.0, 1.0);
-  e.C = std::acos(d) - rest;
-  const double s2 = 1.0 - d * d;
-  if (s2 < 1e-12) {
-    e.valid = false;
-    return e;
-  }
-  const Vec3 g1 = (n2 - n1 * d_raw) / l1;
-  const Vec3 g2 = (n1 - n2 * d_raw) / l2;
-  const double f = -1.0 / std::sqrt(s2);
-  e.grad[2] = f * g1.cross(edge);
-  e.grad[3] = f * g2.cross(edge);
-  e.grad[1] = f * (a.cross(g1) + b.cross(g2));
-  e.grad[0] = -(e.grad[1] + e.grad[2] + e.grad[3]);
-  return e;
+  return to_eval(bending_stencil(v3(x0), v3(x1), v3(x2), v3(x3), rest), 4);
 }
 
 ConstraintEval eval_constraint(const Constraint& c, const Points& x) {
@@ -123,6 +88,54 @@ ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Po
   ConstraintEval ev = fem::eval_deviatoric(e, x);  // sqrt(tr F^T F), its rest is 0
   ev.C -= c.rest;
   return ev;
+}
+
+void constraint_values(const Model& model, const Points& x, std::vector<double>& C) {
+  using L = Pack<double, 16>;
+  const size_t m = model.constraints.size();
+  C.resize(m);
+  const auto lanes = [&](const Constraint& a, const Constraint& b, int i) {
+    V3<L> v;
+    const auto ra = x.row(a.particles[static_cast<size_t>(i)]);
+    const auto rb = x.row(b.particles[static_cast<size_t>(i)]);
+    v.x.set(0, ra(0)), v.x.set(1, rb(0));
+    v.y.set(0, ra(1)), v.y.set(1, rb(1));
+    v.z.set(0, ra(2)), v.z.set(1, rb(2));
+    return v;
+  };
+  size_t j = 0;
+  while (j < m) {
+    const Constraint& a = model.constraints[j];
+    if (j + 1 < m && model.constraints[j + 1].kind == a.kind && !is_fem_kind(a.kind)) {
+      const Constraint& b = model.constraints[j + 1];
+      L rest;
+      rest.set(0, a.rest);
+      rest.set(1, b.rest);
+      L value(0.0);
+      switch (a.kind) {
+        case ConstraintKind::Distance:
+          value = distance_stencil(lanes(a, b, 0), lanes(a, b, 1), rest).C;
+          break;
+        case ConstraintKind::Volume:
+          value = volume_stencil(lanes(a, b, 0), lanes(a, b, 1), lanes(a, b, 2), lanes(a, b, 3), rest).C;
+          break;
+        case ConstraintKind::Bending:
+          value = bending_stencil(lanes(a, b, 0), lanes(a, b, 1), lanes(a, b, 2), lanes(a, b, 3), rest).C;
+          break;
+        case ConstraintKind::FemDeviatoric:
+        case ConstraintKind::FemHydrostatic:
+        case ConstraintKind::FemStrainTriangle:
+        case ConstraintKind::FemStrainTet:
+          break;  // not paired (is_fem_kind)
+      }
+      C[j] = value[0];
+      C[j + 1] = value[1];
+      j += 2;
+    } else {
+      C[j] = eval_constraint(model, a, x).C;
+      j += 1;
+    }
+  }
 }
 
 double normalized_error(const Constraint& c, double C) {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <vector>
 
 #include "core/model.hpp"
 #include "core/types.hpp"
@@ -51,6 +52,12 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x);
 // FEM-kind constraint's element index is out of range. (The overload above, without the model,
 // reports the FEM kinds as C = 0, valid = false.)
 ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Points& x);
+
+// C of every model constraint at positions x (n x 3), in model order: the values
+// eval_constraint(model, c, x).C gives, bit for bit (the same stencils without their gradients,
+// two neighbouring constraints of one kind at a time in the lanes of a pack). For the metrics,
+// which need every C of every step and no gradient.
+void constraint_values(const Model& model, const Points& x, std::vector<double>& C);
 
 // The error of a constraint as the metrics report it: |C| / |rest| for distance and volume when
 // rest != 0 (relative, dimensionless), |C| otherwise (absolute: m or m^3); |C| in radians for

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "core/build_helpers.hpp"
+#include "core/constraint_stencils.hpp"
 #include "core/fem.hpp"
 
 namespace pbdbench::fem {
@@ -22,24 +23,6 @@ namespace {
 using core::detail::format_number;
 using core::detail::index_list;
 using core::detail::kShortDigits;
-
-// The four vertex gradients of C from G = dC/dF (3 x 3) and Dm^-1.
-void vertex_gradients(const Mat3& G, const Mat3& rest_inverse, ConstraintEval& out) {
-  const Mat3 H = G * rest_inverse.transpose();
-  out.grad[1] = H.col(0);
-  out.grad[2] = H.col(1);
-  out.grad[3] = H.col(2);
-  out.grad[0] = -(out.grad[1] + out.grad[2] + out.grad[3]);
-}
-
-// cof F = d(det F)/dF = [f1 x f2, f2 x f0, f0 x f1] (= det F F^-T when F is invertible).
-Mat3 cofactor(const Mat3& F) {
-  Mat3 c;
-  c.col(0) = F.col(1).cross(F.col(2));
-  c.col(1) = F.col(2).cross(F.col(0));
-  c.col(2) = F.col(0).cross(F.col(1));
-  return c;
-}
 
 Mat3 edge_matrix(const Points& x, const std::array<int, 4>& p) {
   Mat3 D;
@@ -109,30 +92,49 @@ Mat32 deformation_gradient_2d(const FemElement& e, const Points& x) {
   return Ds * e.rest_inverse.topLeftCorner<2, 2>();
 }
 
-// C_D = sqrt(tr F^T F) = |F|_Frobenius (Macklin and Mueller 2021, the deviatoric constraint);
-// dC_D/dF = F / |F|, undefined at F = 0.
-ConstraintEval eval_deviatoric(const FemElement& e, const Points& x) {
-  ConstraintEval out;
-  const Mat3 F = deformation_gradient(e, x);
-  const double norm = F.norm();
-  out.C = norm;
-  if (!(norm > 0.0)) {
-    out.valid = false;
-    return out;
+namespace {
+
+// The element's particles at x and Dm^-1 by rows, as core/constraint_stencils.hpp takes them.
+struct ElementStencil {
+  std::array<V3<double>, 4> x;
+  double dm[9];
+};
+
+ElementStencil element_stencil(const FemElement& e, const Points& x) {
+  ElementStencil s;
+  for (int i = 0; i < 4; ++i) {
+    const auto row = x.row(e.particles[static_cast<size_t>(i)]);
+    s.x[static_cast<size_t>(i)] = {row(0), row(1), row(2)};
   }
-  vertex_gradients(F / norm, e.rest_inverse, out);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) s.dm[3 * r + c] = e.rest_inverse(r, c);
+  return s;
+}
+
+ConstraintEval to_eval(const StencilEval<double>& s) {
+  ConstraintEval out;
+  out.C = s.C;
+  out.valid = s.valid;
+  for (int i = 0; i < 4; ++i) {
+    const V3<double>& g = s.grad[static_cast<size_t>(i)];
+    out.grad[static_cast<size_t>(i)] = Vec3(g.x, g.y, g.z);
+  }
   return out;
+}
+
+}  // namespace
+
+// C_D = sqrt(tr F^T F) = |F|_Frobenius (Macklin and Mueller 2021, the deviatoric constraint);
+// dC_D/dF = F / |F|, undefined at F = 0 (core/constraint_stencils.hpp).
+ConstraintEval eval_deviatoric(const FemElement& e, const Points& x) {
+  const ElementStencil s = element_stencil(e, x);
+  return to_eval(fem_deviatoric_stencil(s.x[0], s.x[1], s.x[2], s.x[3], s.dm, 0.0));
 }
 
 // C_H = det F - rest (Macklin and Mueller 2021, the hydrostatic constraint); dC_H/dF = cof F.
 ConstraintEval eval_hydrostatic(const FemElement& e, const Points& x, double rest) {
-  ConstraintEval out;
-  const Mat3 F = deformation_gradient(e, x);
-  out.C = F.determinant() - rest;
-  vertex_gradients(cofactor(F), e.rest_inverse, out);
-  out.valid = out.grad[0].squaredNorm() + out.grad[1].squaredNorm() + out.grad[2].squaredNorm() +
-                  out.grad[3].squaredNorm() > 0.0;
-  return out;
+  const ElementStencil s = element_stencil(e, x);
+  return to_eval(fem_hydrostatic_stencil(s.x[0], s.x[1], s.x[2], s.x[3], s.dm, rest));
 }
 
 namespace {

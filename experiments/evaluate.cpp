@@ -97,6 +97,7 @@ class RunScope final : public Scope {
     scalars_["exploded"] = status == "exploded" ? 1.0 : 0.0;
     scalars_["complete"] = status == "complete" ? 1.0 : 0.0;
     scalars_["failed"] = status == "failed" ? 1.0 : 0.0;
+    scalars_["warnings"] = static_cast<double>(data_.warnings().size());
     const double es = number("exploded_step");
     scalars_["exploded_step"] = es >= 0.0 ? es : kNaN;
     scalars_["exploded_time"] = es >= 0.0 ? number("exploded_time") : kNaN;
@@ -472,7 +473,11 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
         rr.wall_time += seconds_since(tr);
         if (outcome.status == RunStatus::Failed && rr.first_failure.empty()) rr.first_failure = outcome.reason;
       }
-      const std::string status = read_run_file(file, false).status();
+      const RunFileData header = read_run_file(file, false);
+      const std::string status = header.status();
+      if (const std::vector<std::string> w = header.warnings(); !w.empty()) {
+        if (rr.warned++ == 0) rr.first_warning = w.front();
+      }
       if (status == "complete") ++rr.complete;
       else if (status == "exploded") ++rr.exploded;
       else if (status == "failed") ++rr.failed;
@@ -485,6 +490,9 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
                                   rr.incomplete > 0 ? fmt::format(", {} incomplete", rr.incomplete) : "",
                                   rr.wall_time, rr.reused > 0 ? fmt::format(" ({} reused)", rr.reused) : "");
       if (!rr.first_failure.empty()) *options.log << "    first failure: " << rr.first_failure << "\n";
+      if (rr.warned > 0)
+        *options.log << fmt::format("    {} trial{} with warnings; first: {}\n", rr.warned,
+                                    rr.warned == 1 ? "" : "s", rr.first_warning);
     }
     result.runs.push_back(std::move(rr));
   }

@@ -51,6 +51,8 @@ struct RunResult {
   int reused = 0;                  // trials read from an existing run file
   bool timing_only = false;        // made only by timing groups
   std::string first_failure;       // the reason of the first failed trial, if any
+  int warned = 0;                  // trials whose run file carries warnings (metrics/health.hpp)
+  std::string first_warning;       // the first warning of the first such trial
   double wall_time = 0.0;          // s, summed over the trials run now
   std::string solver;              // solver.name of trial 0
   std::vector<std::string> seed_fixes;  // solver.seed.fixes of trial 0 (pbd-seed)

@@ -166,7 +166,7 @@ const std::vector<std::string>& run_scalar_names() {
       "exploded",      "exploded_step", "exploded_time", "complete",       "failed",
       "steps_planned", "steps_completed", "wall_time",   "inv_mass_max",   "inv_mass_min",
       "particles",     "dt",            "pinned_drift",  "constraints_distance", "constraints_volume",
-      "constraints_bending"};
+      "constraints_bending", "warnings"};
   return names;
 }
 

@@ -256,6 +256,7 @@ std::filesystem::path reproductions_dir();
 // Names a measure expression may use: the width-1 series, the components of the width-3 series
 // (name.x, name.y, name.z), and the run's scalars (run_scalar_names()):
 //   exploded, complete, failed  1 or 0 by the run's status
+//   warnings  the number of warnings the run file carries (metrics/health.hpp)
 //   exploded_step, exploded_time  when the run exploded (NaN when it did not)
 //   steps_planned, steps_completed, wall_time (s), dt (s)
 //   particles, inv_mass_max, inv_mass_min  of the run's model (1/kg)

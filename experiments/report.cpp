@@ -205,19 +205,24 @@ void timings_table(std::ostringstream& md, const ClaimResult& c) {
 
 void runs_table(std::ostringstream& md, const ClaimResult& c) {
   if (c.runs.empty()) return;
-  md << "| run | solver | trials | complete | exploded | failed |\n|---|---|---|---|---|---|\n";
+  md << "| run | solver | trials | complete | exploded | failed | warned |\n|---|---|---|---|---|---|---|\n";
+  std::string notes;  // the first warning of each warned run, under the table
   for (const RunResult& r : c.runs) {
     std::string solver = r.solver;
     if (r.solver == "pbd-seed")
       solver += r.seed_fixes.empty() ? " (as printed)" : fmt::format(" (fixes {})", fmt::join(r.seed_fixes, " "));
     if (r.timing_only) {
-      md << fmt::format("| {} | {} | timed only | | | |\n", r.name, solver);
+      md << fmt::format("| {} | {} | timed only | | | | |\n", r.name, solver);
       continue;
     }
-    md << fmt::format("| {} | {} | {} | {} | {} | {} |\n", r.name, solver, r.files.size(), r.complete, r.exploded,
-                      r.failed + r.incomplete);
+    md << fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", r.name, solver, r.files.size(), r.complete, r.exploded,
+                      r.failed + r.incomplete, r.warned);
+    if (r.warned > 0) notes += fmt::format("- {}: {}\n", r.name, r.first_warning);
   }
   md << "\n";
+  if (!notes.empty())
+    md << "Warnings (what a reader would call a failure though no explosion limit was crossed; the first "
+          "of each run):\n\n" << notes << "\n";
 }
 
 const RegistrationStatus* status_of(const ReportContext& ctx, const std::string& id) {
@@ -477,7 +482,7 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
       const RunResult& run = c.runs[r];
       js << (r ? ",\n       " : "\n       ") << "{\"name\": " << json_string(run.name) << ", \"solver\": "
          << json_string(run.solver) << ", \"complete\": " << run.complete << ", \"exploded\": " << run.exploded
-         << ", \"failed\": " << run.failed << ", \"files\": [";
+         << ", \"failed\": " << run.failed << ", \"warned\": " << run.warned << ", \"files\": [";
       for (size_t k = 0; k < run.files.size(); ++k) {
         std::error_code ec;
         fs::path p = fs::relative(run.files[k], relative_to, ec);

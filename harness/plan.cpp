@@ -96,7 +96,7 @@ std::string duration(double s) {
 RunPlan plan_run(const Model& model, const SolverOptions& solver, const config::RunOptions& run) {
   RunPlan plan;
   plan.steps = run.steps();
-  plan.frames = plan.steps / std::max(run.frame_every, 1) + 2;
+  plan.frames = plan.steps / run.every_frame() + 2;
   plan.contact_pairs = overlapping_pairs(model);
   const double n = model.particle_count();
   const double m = static_cast<double>(model.constraints.size());
@@ -105,7 +105,7 @@ RunPlan plan_run(const Model& model, const SolverOptions& solver, const config::
   size_t columns = 0;
   for (const SeriesSpec& s : series_table()) columns += static_cast<size_t>(s.width);
   columns += 2 * model.group_names.size();
-  plan.file_bytes = (steps + 1) * static_cast<double>(columns) * 8.0 + static_cast<double>(plan.frames) * n * 24.0;
+  plan.file_bytes = (steps + 1) * static_cast<double>(columns) * 8.0 + static_cast<double>(plan.frames) * n * 48.0;  // positions and velocities
   const double sweeps = std::max(1, solver.substeps) * std::max(1, solver.iterations);
   if (is_reference(solver.name)) {
     plan.seconds = steps * ((m + n) * kReferenceSeconds + kRowSeconds);

@@ -10,6 +10,7 @@
 #include "core/cancel.hpp"
 #include "harness/plan.hpp"
 #include "harness/relax.hpp"
+#include "metrics/health.hpp"
 #include "metrics/shadow.hpp"
 #include "solvers/solver.hpp"
 
@@ -67,7 +68,13 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
           "relax.frames = " + std::to_string(relax_frames) + " cannot be combined with a shadow "
           "(shadow.solver = '" + shadow_name + "' builds its energy model once)");
   }
-  auto solver = control.make_solver ? control.make_solver(solver_opts, model) : make_solver(solver_opts, model);
+  // A solver that cannot run this scene is bad input (exit 2), found after parsing.
+  std::unique_ptr<Solver> solver;
+  try {
+    solver = control.make_solver ? control.make_solver(solver_opts, model) : make_solver(solver_opts, model);
+  } catch (const std::invalid_argument& e) {
+    throw config::ConfigError(config::Source{config.file.string(), 0}, "solver.name", e.what());
+  }
   // The shadow: a global solver stepping a copy of the state from the same start.
   std::unique_ptr<Solver> shadow;
   const long shadow_every = static_cast<long>(config.get_int("shadow.every"));
@@ -109,6 +116,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
 
   RunOutcome outcome;
   outcome.steps_planned = run.steps();
+  const long frame_every = run.every_frame();
 
   if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
   RunHeader header;
@@ -120,9 +128,21 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   header.steps_planned = outcome.steps_planned;
   RunFileWriter writer(out, header, model);
 
+  // Warnings (metrics/health.hpp). Energy comes in through moving kinematic particles or
+  // colliders and through relaxing rest values: the energy check is off in such scenes.
+  bool energy_sources = relax_frames > 0;
+  for (const Attachment& a : model.attachments) energy_sources = energy_sources || a.motion >= 0;
+  for (const SphereCollider& sp : model.spheres) energy_sources = energy_sources || sp.motion >= 0;
+  HealthMonitor health(model, state, sample, outcome.steps_planned, energy_sources);
+  // Every way out records the warnings seen so far.
+  auto record_warnings = [&] {
+    for (const RunWarning& w : health.warnings()) outcome.warnings.push_back(w.line());
+    writer.set_warnings(outcome.warnings);
+  };
+
   const StepReport initial_report;
   writer.append({state.time, state.step, 0.0, &sample, &initial_report});
-  writer.append_frame(state.time, state.x);
+  writer.append_frame(state.time, state.x, &state.v);
 
   State shadow_state;
   // The velocities after the two previous steps (the initial ones before step 1), for
@@ -158,28 +178,31 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       }
       writer.append({state.time, state.step, wall, &sample, &report, &shadow_sample});
       outcome.steps_completed = k;
+      health.observe(k, state, sample);
       std::string why = explosion_reason(model, state, sample, run.limits, baseline);
       if (why.empty()) why = non_finite(sample);
       if (!why.empty()) {
-        writer.append_frame(state.time, state.x);
+        writer.append_frame(state.time, state.x, &state.v);
         outcome.status = RunStatus::Exploded;
         outcome.reason = why;
         outcome.exploded_step = k;
         outcome.final_sample = sample;
         outcome.wall_time = seconds_since(t_start);
+        record_warnings();
         writer.finish(RunStatus::Exploded, why, k, outcome.wall_time, k, state.time);
         return outcome;
       }
-      if (k % run.frame_every == 0 || k == outcome.steps_planned)
-        writer.append_frame(state.time, state.x);
+      if (k % frame_every == 0 || k == outcome.steps_planned)
+        writer.append_frame(state.time, state.x, &state.v);
       if (control.progress) control.progress(k, outcome.steps_planned);
       const bool stop = (control.stop != nullptr && control.stop->load()) || cancel_requested();
       if (stop && k < outcome.steps_planned) {
-        writer.append_frame(state.time, state.x);
+        writer.append_frame(state.time, state.x, &state.v);
         outcome.status = RunStatus::Incomplete;
         outcome.reason = "interrupted after step " + std::to_string(k);
         outcome.final_sample = sample;
         outcome.wall_time = seconds_since(t_start);
+        record_warnings();
         writer.finish(RunStatus::Incomplete, outcome.reason, k, outcome.wall_time);
         return outcome;
       }
@@ -193,6 +216,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
                        (dynamic_cast<const Cancelled*>(&e) != nullptr ? std::string(" (") + e.what() + ")" : "");
       outcome.final_sample = sample;
       outcome.wall_time = seconds_since(t_start);
+      record_warnings();
       writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
       return outcome;
     }
@@ -200,12 +224,14 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
     outcome.reason = e.what();
     outcome.final_sample = sample;
     outcome.wall_time = seconds_since(t_start);
+    record_warnings();
     writer.finish(RunStatus::Failed, outcome.reason, outcome.steps_completed, outcome.wall_time);
     return outcome;
   }
   outcome.status = RunStatus::Complete;
   outcome.final_sample = sample;
   outcome.wall_time = seconds_since(t_start);
+  record_warnings();
   writer.finish(RunStatus::Complete, "", outcome.steps_completed, outcome.wall_time);
   return outcome;
 }

@@ -6,7 +6,9 @@
 //              (the first relax.frames steps give the solver a relaxed copy of the model:
 //              harness/relax.hpp; the metrics always measure against the model itself)
 //              explosion check: NaN, Inf, speed or extent beyond the limits -> stop, "exploded"
-//   finish: "complete", "exploded", "failed" (an exception), or "incomplete" (interrupted)
+//   finish: "complete", "exploded", "failed" (an exception), or "incomplete" (interrupted),
+//           with the warnings of metrics/health.hpp (energy gained, volume lost, error growth,
+//           tunnelling) whatever the status
 #pragma once
 
 #include <atomic>
@@ -14,6 +16,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "config/config.hpp"
 #include "metrics/metrics.hpp"
@@ -31,6 +34,9 @@ struct RunOutcome {
   double wall_time = 0.0;   // s, the whole run including metrics and output
   double solver_time = 0.0; // s, inside solver.step() only
   Sample final_sample;      // metrics of the last state
+  // What a reader would call a failure though no limit was crossed (metrics/health.hpp), one
+  // line each; also in the run file's "warnings" attribute.
+  std::vector<std::string> warnings;
 };
 
 struct RunControl {

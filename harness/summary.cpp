@@ -77,6 +77,7 @@ std::string steps_text(const RunFileData& d) {
 
 std::string status_text(const RunFileData& d) {
   std::string s = d.status();
+  if (const size_t n = d.warnings().size(); n > 0) s += fmt::format(" !{}", n);
   if (s == "exploded") {
     auto step = d.numbers.find("exploded_step");
     if (step != d.numbers.end()) s += fmt::format(" @{}", static_cast<long>(step->second));
@@ -93,6 +94,7 @@ std::string number(double v) {
 
 std::string summary_table(const std::vector<SummaryEntry>& entries) {
   std::vector<std::vector<std::string>> rows;
+  std::string notes;  // the warnings, under the table
   std::vector<std::string> head1 = {"run", "status", "steps"}, head2 = {"", "", ""};
   for (const Column& c : columns()) {
     head1.push_back(c.title);
@@ -107,6 +109,7 @@ std::string summary_table(const std::vector<SummaryEntry>& entries) {
       row.push_back(status_text(d));
       row.push_back(steps_text(d));
       for (const Column& c : columns()) row.push_back(number(c.value(d)));
+      for (const std::string& w : d.warnings()) notes += "  " + e.label + ": WARNING " + w + "\n";
     } catch (const std::exception& ex) {
       row.push_back("unreadable");
       row.push_back(ex.what());
@@ -136,11 +139,14 @@ std::string summary_table(const std::vector<SummaryEntry>& entries) {
       out += std::string(total - 2, '-') + "\n";
     }
   }
+  if (!notes.empty())
+    out += "!N: N warnings (metrics/health.hpp): what a reader would call a failure though no "
+           "explosion limit was crossed\n" + notes;
   return out;
 }
 
 std::string summary_csv(const std::vector<SummaryEntry>& entries) {
-  std::string out = "run,file,status,steps_completed,steps_planned";
+  std::string out = "run,file,status,steps_completed,steps_planned,warnings";
   for (const Column& c : columns()) out += fmt::format(",{} ({})", c.title, c.units);
   out += "\n";
   for (const SummaryEntry& e : entries) {
@@ -151,10 +157,13 @@ std::string summary_csv(const std::vector<SummaryEntry>& entries) {
         auto it = d.numbers.find(k);
         return it == d.numbers.end() ? std::string("") : fmt::format("{}", static_cast<long>(it->second));
       };
-      out += fmt::format(",{},{},{}", d.status(), num("steps_completed"), num("steps_planned"));
+      std::string warnings;
+      for (const std::string& w : d.warnings()) warnings += (warnings.empty() ? "" : "; ") + w;
+      std::replace(warnings.begin(), warnings.end(), '"', '\'');
+      out += fmt::format(",{},{},{},\"{}\"", d.status(), num("steps_completed"), num("steps_planned"), warnings);
       for (const Column& c : columns()) out += fmt::format(",{:.17g}", c.value(d));
     } catch (const std::exception&) {
-      out += ",unreadable,,";
+      out += ",unreadable,,,";
       for (size_t k = 0; k < columns().size(); ++k) out += ",";
     }
     out += "\n";

@@ -14,8 +14,8 @@ struct SummaryEntry {
 };
 
 // One row per entry: status, steps, constraint error (final and peak max, final RMS), volume
-// drift, energy change, peak penetration, solver milliseconds per step. Unreadable files get a
-// row saying so.
+// drift, energy change, peak penetration, solver milliseconds per step; a status "complete !2"
+// has 2 warnings (metrics/health.hpp), listed under the table. Unreadable files get a row saying so.
 std::string summary_table(const std::vector<SummaryEntry>& entries);
 
 // The same as comma-separated values with a header row and full precision.

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <charconv>
 #include <cmath>
@@ -23,6 +24,7 @@
 #include "core/cancel.hpp"
 #include "runfile/output_guard.hpp"
 #include "runfile/run_file.hpp"
+#include "solvers/options.hpp"
 
 extern char** environ;
 
@@ -146,7 +148,7 @@ std::string status_from_exit(int wstatus) {
 // A child runs `argv` with stdout and stderr to `log_path`, and dies with the thread that
 // started it (PR_SET_PDEATHSIG: SIGTERM, so that it still records itself as interrupted): a
 // killed sweep leaves no run going on without it. Only async-signal-safe calls after fork().
-pid_t spawn_child(const std::vector<char*>& argv, const std::string& log_path) {
+pid_t spawn_child(const std::vector<char*>& argv, char* const* envp, const std::string& log_path) {
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error(std::string("cannot start a run: fork failed: ") + std::strerror(errno));
@@ -162,7 +164,7 @@ pid_t spawn_child(const std::vector<char*>& argv, const std::string& log_path) {
     ::sigprocmask(SIG_SETMASK, &none, nullptr);
     const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0 || ::dup2(fd, STDOUT_FILENO) < 0 || ::dup2(fd, STDERR_FILENO) < 0) _exit(127);
-    ::execve(argv[0], argv.data(), environ);
+    ::execve(argv[0], argv.data(), envp);
     _exit(127);
   }
   return pid;
@@ -174,6 +176,21 @@ bool run_children(const fs::path& executable, const std::vector<ChildRun>& runs,
                   const std::function<void(size_t, const std::string&, const std::string&)>& on_done) {
   std::map<pid_t, size_t> running;
   size_t next = 0, done = 0;
+  // The children's environment: this one, with each child's share of the cores,
+  // max(1, cores / jobs), so that `jobs` runs at once do not each start a thread per core:
+  // PBDBENCH_CORES (read by available_cores(): what solver.threads = 0 gives pbd and xpbd), and,
+  // unless this environment sets it, OMP_THREAD_LIMIT, the only bound on the OpenMP threads of
+  // Debian's CHOLMOD (built with a fixed num_threads(4)), read when a process starts.
+  std::vector<std::string> env_text;
+  const std::string share_prefix = std::string(kCoresVariable) + "=";
+  const std::string share = std::to_string(std::max(1, available_cores() / std::max(jobs, 1)));
+  for (char** e = environ; *e != nullptr; ++e)
+    if (std::string(*e).rfind(share_prefix, 0) != 0) env_text.emplace_back(*e);
+  env_text.push_back(share_prefix + share);
+  if (std::getenv("OMP_THREAD_LIMIT") == nullptr) env_text.push_back("OMP_THREAD_LIMIT=" + share);
+  std::vector<char*> envp;
+  for (std::string& e : env_text) envp.push_back(e.data());
+  envp.push_back(nullptr);
   bool stopping = false;
   auto launch = [&](size_t k) {
     const ChildRun& r = runs[k];
@@ -192,12 +209,13 @@ bool run_children(const fs::path& executable, const std::vector<ChildRun>& runs,
     args.push_back("--out");
     args.push_back(r.file.string());
     args.push_back("--quiet");
+    args.push_back("--no-xdmf");  // `pbdbench export` makes one when wanted
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
     fs::create_directories(r.file.parent_path());
     const std::string log_path = fs::path(r.file).replace_extension(".log").string();
-    running[spawn_child(argv, log_path)] = k;
+    running[spawn_child(argv, envp.data(), log_path)] = k;
   };
   while (done < runs.size()) {
     if (!stopping && cancel_requested()) {

@@ -40,20 +40,25 @@ double max_distance_from_centroid(const Points& x) {
   return d;
 }
 
-// The number of constraints the error metrics measure (the FEM kinds are not measured); a group
-// of FEM kinds only gets max = rms = NaN.
-size_t measured_constraints(const Model& model, std::vector<GroupError>& groups) {
-  size_t measured = 0;
-  for (const Constraint& c : model.constraints) {
-    if (!is_fem_kind(c.kind)) {
-      ++measured;
-    } else if (groups[c.group].count == 0) {
-      groups[c.group].max = kNaN;
-      groups[c.group].rms = kNaN;
+}  // namespace
+
+double constraint_error(const Model& model, const Constraint& c, const Points& x) {
+  if (!is_fem_kind(c.kind)) return normalized_error(c, eval_constraint(c, x).C);
+  const ConstraintEval e = eval_constraint(model, c, x);
+  if (c.element < 0 || c.element >= static_cast<int>(model.elements.size())) return kNaN;
+  switch (c.kind) {
+    case ConstraintKind::FemDeviatoric: {
+      // sqrt(tr F^T F) is sqrt(d) at rest (d = 3 for a tet, 2 for a triangle).
+      const double d = model.elements[static_cast<size_t>(c.element)].vertices - 1;
+      const double rest_value = std::sqrt(d);
+      return std::abs(e.C + c.rest - rest_value) / rest_value;
     }
+    case ConstraintKind::FemHydrostatic: return std::abs(e.C + c.rest - 1.0);  // |det F - 1|
+    default: return std::abs(e.C);  // the strain kinds: |strain vector|, 0 at rest
   }
-  return measured;
 }
+
+namespace {
 
 double relative_drift(double now, double start) {
   return start != 0.0 ? (now - start) / std::abs(start) : kNaN;
@@ -75,13 +80,17 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   const Points& v = state.v;
   const int n = model.particle_count();
 
-  // Constraint error, overall and per group. The FEM kinds are left out: they are energy terms
-  // (their C is not 0 at rest), not targets.
+  // Constraint error, overall and per group (constraint_error above: the FEM kinds by their
+  // deviation from the rest shape).
   s.groups.assign(model.group_names.size(), GroupError{});
+  std::vector<double> values;  // C of every constraint (core/constraint_functions.hpp)
+  constraint_values(model, x, values);
   double sum_sq = 0.0;
-  for (const Constraint& c : model.constraints) {
-    if (is_fem_kind(c.kind)) continue;
-    const double err = normalized_error(c, eval_constraint(c, x).C);
+  size_t measured = 0;
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
+    const Constraint& c = model.constraints[j];
+    const double err = is_fem_kind(c.kind) ? constraint_error(model, c, x) : normalized_error(c, values[j]);
+    ++measured;
     GroupError& g = s.groups[c.group];
     g.max = std::max(g.max, err);
     g.rms += err * err;
@@ -94,7 +103,6 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     }
   }
   for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
-  const size_t measured = measured_constraints(model, s.groups);
   s.constraint_error_rms = measured == 0 ? 0.0 : std::sqrt(sum_sq / measured);
 
   // Volume.
@@ -124,11 +132,12 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     s.linear_momentum += m * vi;
     s.angular_momentum += m * xi.cross(vi);
   }
-  for (const Constraint& c : model.constraints) {
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
     // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it below
     // (adding both would count each element twice).
+    const Constraint& c = model.constraints[j];
     if (c.compliance > 0.0 && !is_fem_kind(c.kind)) {
-      const double C = eval_constraint(c, x).C;
+      const double C = values[j];
       s.elastic_energy += C * C / (2.0 * c.compliance);
     }
   }

@@ -24,15 +24,23 @@ struct GroupError {
   double max = 0.0;  // max over the group's constraints of normalized_error (core/constraint_functions.hpp)
   double rms = 0.0;  // root mean square of the same
   int count = 0;     // constraints in the group
-  // A group of FEM-kind constraints only ("fem_deviatoric", "fem_hydrostatic") has count 0 and
-  // max = rms = NaN: those constraints are energy terms, not targets (core/model.hpp), so the
-  // run file's constraint_error_*_fem_* series are NaN throughout by design.
+  // The FEM kinds count like the others, by constraint_error() below.
 };
+
+// The error of one constraint as the metrics report it: normalized_error
+// (core/constraint_functions.hpp) for distance, volume and bending; for the FEM kinds, the
+// deviation of the constraint function from its value at the element's rest shape (F = I),
+// relative to that value where it is not 0:
+//   fem_deviatoric   |sqrt(tr F^T F) - sqrt(d)| / sqrt(d)   (d = 3 for a tet, 2 for a triangle)
+//   fem_hydrostatic  |det F - 1|                            (the element's relative volume change)
+//   fem_strain_*     |strain vector| (Green or linear strain, 0 at rest)
+// so that a collapsing FEM block never reads 0. NaN for an FEM constraint without its element.
+double constraint_error(const Model& model, const Constraint& c, const Points& x);
 
 struct Sample {
   // Constraint error over the model's constraints, normalised per kind (relative to rest length
-  // or volume; radians for bending), overall and per group (indexed like Model::group_names).
-  // The FEM kinds are left out (energy terms, not targets).
+  // or volume; radians for bending; FEM kinds: constraint_error below), overall and per group
+  // (indexed like Model::group_names).
   double constraint_error_max = 0.0;
   double constraint_error_rms = 0.0;
   std::vector<GroupError> groups;

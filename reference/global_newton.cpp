@@ -39,13 +39,26 @@ double row_potential(const GlobalRow& row, double C, double lambda, double eps) 
   return -0.5 * eps * lambda * lambda;
 }
 
-// Projection of a symmetric block onto the positive semi-definite cone (its leading k x k).
+// Projection of a symmetric K x K block onto the positive semi-definite cone, in fixed-size
+// matrices (no heap allocation).
+template <int K>
+void project_psd_fixed(Mat12& H) {
+  using M = Eigen::Matrix<double, K, K>;
+  const M sub = H.template topLeftCorner<K, K>();
+  const Eigen::SelfAdjointEigenSolver<M> eig(sub);
+  H.template topLeftCorner<K, K>() =
+      eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+}
+
+// Projection of a symmetric block onto the positive semi-definite cone (its leading k x k, k = 3
+// times the row's particles).
 void project_psd(Mat12& H, int k) {
-  if (k == 12) {
-    const Eigen::SelfAdjointEigenSolver<Mat12> eig(H);
-    H = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
-        eig.eigenvectors().transpose();
-    return;
+  switch (k) {
+    case 3: project_psd_fixed<3>(H); return;
+    case 6: project_psd_fixed<6>(H); return;
+    case 9: project_psd_fixed<9>(H); return;
+    case 12: project_psd_fixed<12>(H); return;
+    default: break;
   }
   const Eigen::MatrixXd sub = H.topLeftCorner(k, k);
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(sub);

@@ -236,7 +236,9 @@ CaseResult measure_case(const Registry& reg, const CaseSpec& c, const fs::path& 
   r.file = dir / (c.name + ".h5");
   const config::Config cfg = config::load(c.scenario, c.set);
   if (force || control.make_solver || !run_is_current(r.file, cfg.to_toml())) run_config(cfg, r.file, control);
-  r.status = read_run_file(r.file, false).status();
+  const RunFileData header = read_run_file(r.file, false);
+  r.status = header.status();
+  r.warnings = header.warnings();
   const std::unique_ptr<experiments::Scope> scope = experiments::run_scope(r.file);
   for (const std::string& name : c.metrics) r.values[name] = reg.metric(name)->value.evaluate(*scope);
   r.hash = state_hash(r.file);

@@ -72,6 +72,7 @@ struct CaseResult {
   std::string status;                 // complete, exploded, failed, ...
   std::map<std::string, double> values;  // metric -> value
   std::string hash;                   // the bitwise tier's hash (16 hex digits)
+  std::vector<std::string> warnings;  // the run file's warnings (metrics/health.hpp)
 };
 
 // The 64-bit FNV-1a hash of a run file's last frame of positions and of every deterministic

@@ -56,6 +56,20 @@ std::string RunFileData::status() const {
   return it == attributes.end() ? std::string() : it->second;
 }
 
+std::vector<std::string> RunFileData::warnings() const {
+  std::vector<std::string> out;
+  auto it = attributes.find("warnings");
+  if (it == attributes.end()) return out;
+  size_t start = 0;
+  while (start < it->second.size()) {
+    size_t end = it->second.find('\n', start);
+    if (end == std::string::npos) end = it->second.size();
+    if (end > start) out.push_back(it->second.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -295,7 +309,7 @@ struct RunFileWriter::Impl {
   std::optional<H5::H5File> file;
   std::vector<Series> series;        // series_table() order, then group series
   std::vector<std::string> series_names;
-  std::optional<H5::DataSet> frame_time, frame_positions;
+  std::optional<H5::DataSet> frame_time, frame_positions, frame_velocities;
   hsize_t frames = 0;
 
   size_t pending_rows = 0;
@@ -353,6 +367,7 @@ struct RunFileWriter::Impl {
     series.clear();
     frame_time.reset();
     frame_positions.reset();
+    frame_velocities.reset();
     try {
       file.reset();
     } catch (...) {
@@ -418,6 +433,8 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
     set_attr(file, "dt", header.dt);
     set_attr(file, "steps_planned", static_cast<long long>(header.steps_planned));
     set_attr(file, "steps_completed", 0LL);
+    set_attr(file, "warnings", std::string());
+    set_attr(file, "warning_count", 0LL);
     set_attr(file, "wall_time", 0.0);
     set_attr(file, "exploded_step", -1LL);
     set_attr(file, "exploded_time", -1.0);
@@ -476,6 +493,11 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
                                                      small_chunk_cache(static_cast<size_t>(chunk[1]) * 3 * sizeof(double))));
       set_attr(*w.frame_positions, "units", "m");
       set_attr(*w.frame_positions, "doc", "particle positions of each frame, (frames, n, 3)");
+      w.frame_velocities.emplace(frames.createDataSet("velocities", H5::PredType::IEEE_F64LE,
+                                                      H5::DataSpace(3, dims, maxdims), props,
+                                                      small_chunk_cache(static_cast<size_t>(chunk[1]) * 3 * sizeof(double))));
+      set_attr(*w.frame_velocities, "units", "m/s");
+      set_attr(*w.frame_velocities, "doc", "particle velocities of each frame, (frames, n, 3) (NaN where not given)");
     }
   } catch (const H5::Exception& e) {
     fail(path, "cannot create the HDF5 file: " + h5_message(e));
@@ -535,7 +557,7 @@ void RunFileWriter::append(const SeriesRow& row) {
   }
 }
 
-void RunFileWriter::append_frame(double time, const Points& x) {
+void RunFileWriter::append_frame(double time, const Points& x, const Points* v) {
   Impl& w = *impl_;
   if (w.closed)
     throw std::logic_error("run file " + w.path.string() + ": append_frame() after finish()");
@@ -548,9 +570,17 @@ void RunFileWriter::append_frame(double time, const Points& x) {
     hsize_t rows = w.frames;
     append_rows(*w.frame_time, rows, 1, {}, &time, H5::PredType::NATIVE_DOUBLE);
     rows = w.frames;
-    if (w.particles > 0)
+    if (w.particles > 0) {
       append_rows(*w.frame_positions, rows, 1, {static_cast<hsize_t>(w.particles), 3}, x.data(),
                   H5::PredType::NATIVE_DOUBLE);
+      rows = w.frames;
+      const Points nan = v != nullptr && v->rows() == x.rows()
+                             ? Points()
+                             : Points::Constant(x.rows(), 3, std::numeric_limits<double>::quiet_NaN());
+      const Points& vel = nan.rows() > 0 ? nan : *v;
+      append_rows(*w.frame_velocities, rows, 1, {static_cast<hsize_t>(w.particles), 3}, vel.data(),
+                  H5::PredType::NATIVE_DOUBLE);
+    }
     w.frames += 1;
     w.dirty = true;
     w.maybe_publish();
@@ -566,6 +596,20 @@ void RunFileWriter::flush() {
     w.publish(false);
   } catch (const H5::Exception& e) {
     fail(w.path, "cannot flush: " + h5_message(e));
+  }
+}
+
+void RunFileWriter::set_warnings(const std::vector<std::string>& lines) {
+  Impl& w = *impl_;
+  if (w.closed) throw std::logic_error("run file " + w.path.string() + ": set_warnings() after finish()");
+  std::string text;
+  for (const std::string& l : lines) text += (text.empty() ? "" : "\n") + l;
+  try {
+    set_attr(*w.file, "warnings", text);
+    set_attr(*w.file, "warning_count", static_cast<long long>(lines.size()));
+    w.dirty = true;
+  } catch (const H5::Exception& e) {
+    fail(w.path, "cannot write the warnings: " + h5_message(e));
   }
 }
 

@@ -3,11 +3,13 @@
 //   /                  attributes: format_version, status, status_reason, scenario,
 //                      scenario_file, solver, config (resolved TOML), dt, steps_planned,
 //                      steps_completed, exploded_step, exploded_time, wall_time, created,
+//                      warnings (one per line, "" when none: metrics/health.hpp), warning_count,
 //                      pbdbench_version, git_commit, compiler, build_type, cxx_flags
 //   /series/<name>     one dataset per series_table() entry (+ per-group series), extendible,
 //                      chunked; attributes units, doc, deterministic
 //   /frames/time       (F,) s
 //   /frames/positions  (F, n, 3) m, chunked (1, n, 3), shuffle + gzip
+//   /frames/velocities (F, n, 3) m/s, the same (NaN rows where a frame came without them)
 //   /model/...         rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),
 //                      triangles (T,3), tets (K,4), constraint_kind (m), constraint_particles
 //                      (m,4), constraint_rest (m), constraint_compliance (m),
@@ -61,8 +63,13 @@ class RunFileWriter {
   RunFileWriter& operator=(const RunFileWriter&) = delete;
 
   void append(const SeriesRow& row);                // one row of every series
-  void append_frame(double time, const Points& x);  // one frame of positions
+  // One frame of positions and, when given, velocities (else NaN).
+  void append_frame(double time, const Points& x, const Points* v = nullptr);
   void flush();
+
+  // Records the run's warnings (metrics/health.hpp): the root attributes "warnings" (one per
+  // line) and "warning_count". Every file starts with none.
+  void set_warnings(const std::vector<std::string>& lines);
 
   // Records how the run ended and closes the file. For Exploded, exploded_step/time say when.
   void finish(RunStatus status, const std::string& reason, long steps_completed,
@@ -81,6 +88,8 @@ struct RunFileData {
   std::map<std::string, Points> series3;              // width-3 series
   std::vector<std::string> group_names;
   std::string status() const;  // attributes["status"]
+  // attributes["warnings"] split into lines (none for files written before warnings existed).
+  std::vector<std::string> warnings() const;
 };
 
 // Throws std::runtime_error naming the path when the file cannot be read.

@@ -9,6 +9,10 @@ PACKAGES=(
   libtomlplusplus-dev libcli11-dev libfmt-dev libgtest-dev libbenchmark-dev nlohmann-json3-dev
   python3-matplotlib python3-h5py python3-numpy
   clang-14 libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer and the sanitizers
+  libomp-14-dev                # scripts/fuzz.sh: OpenMP for clang (solvers/: g++ has its libgomp)
+  python3-paraview  # pvbatch: the tests read the ParaView output with ParaView's own XDMF reader
+                    # (Debian's python3-vtk9 has no XDMF reader)
+  ffmpeg            # scripts/animate.py: MP4 animations
 )
 
 missing=()

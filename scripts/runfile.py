@@ -20,7 +20,7 @@ import tomllib
 import h5py
 import numpy as np
 
-__all__ = ["Run", "RunFileError", "load", "label", "differing_keys", "config_value",
+__all__ = ["Run", "RunFileError", "load", "load_viz", "label", "differing_keys", "config_value",
            "format_value"]
 
 
@@ -42,6 +42,8 @@ class Run:
     rows        the number of rows (the shortest series)
     frame_time  (F,) s, or None
     frames      (F, n, 3) m positions, or None (load(..., frames=False) skips them)
+    velocities  (F, n, 3) m/s velocities of the same frames, or None (older files, frames=False)
+    warnings    the run's warnings (metrics/health.hpp), one string each; [] when none
     model       name -> numpy array of /model, plus "group_names" (list of str) and
                 "constraint_kind_names"
     """
@@ -57,11 +59,17 @@ class Run:
         self.deterministic = {}
         self.frame_time = None
         self.frames = None
+        self.velocities = None
         self.model = {}
 
     @property
     def status(self):
         return self.attrs.get("status", "incomplete")
+
+    @property
+    def warnings(self):
+        text = self.attrs.get("warnings", "")
+        return [line for line in text.split("\n") if line] if isinstance(text, str) else []
 
     @property
     def rows(self):
@@ -129,6 +137,8 @@ def load(path, frames=True, model=True):
                     run.frame_time = np.asarray(f["frames/time"][()], dtype=float)
                 if frames and "positions" in f["frames"]:
                     run.frames = np.asarray(f["frames/positions"][()], dtype=float)
+                if frames and "velocities" in f["frames"]:
+                    run.velocities = np.asarray(f["frames/velocities"][()], dtype=float)
             if model and "model" in f:
                 g = f["model"]
                 for name, ds in g.items():
@@ -203,3 +213,19 @@ def label(run, keys):
         shown = short if last.count(short) == 1 else k
         parts.append(f"{shown}={format_value(config_value(run, k, '?'))}")
     return ", ".join(parts)
+
+
+def load_viz(path):
+    """The fields of a run's ParaView export (RUN.viz.h5, written by `pbdbench run` or
+    `pbdbench export RUN.h5`; runfile/xdmf.hpp): name -> numpy array (edges, triangles, tets,
+    collider_points (F or 1, P, 3), collider_triangles, displacement, inv_mass, pinned, and per
+    frame and cell edge_strain, edge_constraint_error, triangle_area_change,
+    triangle_constraint_error, tet_volume_change, tet_constraint_error). Raises RunFileError."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise RunFileError(f"{path}: no such file")
+    try:
+        with h5py.File(path, "r") as f:
+            return {name: ds[()] for name, ds in f.items() if isinstance(ds, h5py.Dataset)}
+    except OSError as e:
+        raise RunFileError(f"{path}: cannot read: {e}") from e

@@ -5,7 +5,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
+#include <thread>
+
+#include <sched.h>
 
 namespace pbdbench {
 
@@ -48,6 +52,22 @@ bool parse_precision(const std::string& name, Precision& out) {
   return true;
 }
 
+int available_cores() {
+  int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0) cores = std::max(1, CPU_COUNT(&set));
+  // A share given by a parent that runs several runs at once (sweep --jobs, harness/sweep.cpp).
+  if (const char* share = std::getenv(kCoresVariable)) {
+    char* end = nullptr;
+    const long n = std::strtol(share, &end, 10);
+    if (end != share && *end == '\0' && n >= 1) cores = std::min(cores, static_cast<int>(std::min(n, 1024L)));
+  }
+  return cores;
+}
+
+int resolve_threads(int threads) { return threads >= 1 ? threads : available_cores(); }
+
 const std::vector<std::string>& seed_departure_ids() {
   static const std::vector<std::string> ids = {"D1", "D2", "D3", "D4", "D5", "D6",
                                                "D7", "D8", "D9", "D10", "D11"};
@@ -70,6 +90,8 @@ std::string SolverOptions::validate() const {
   if (substeps < 1) return out_of_range("solver.substeps", substeps, "below the minimum", 1);
   if (substeps > 100000)
     return out_of_range("solver.substeps", substeps, "above the maximum", 100000);
+  if (threads < 0) return out_of_range("solver.threads", threads, "below the minimum", 0);
+  if (threads > 1024) return out_of_range("solver.threads", threads, "above the maximum", 1024);
   if (!(jacobi_relaxation > 0.0))
     return out_of_range("solver.jacobi_relaxation", jacobi_relaxation, "not above", 0.0);
   if (!(jacobi_relaxation <= 2.0))

@@ -42,16 +42,25 @@ const char* to_string(ProjectionOrder order);  // "sequential", "reversed", ...
 // Parses the names above; returns false when unknown.
 bool parse_projection_order(const std::string& name, ProjectionOrder& out);
 
-// How pbd and xpbd store their state (solver.precision). The arithmetic is double either way.
+// The precision pbd and xpbd compute in (solver.precision).
 enum class Precision : std::uint8_t {
-  Double,  // the state in double
-  Float,   // positions, velocities, predicted positions and multipliers rounded to float32 at
-           // every write, as a float32 solver stores them (docs/solvers.md, "Precision")
+  Double,  // double
+  Float,   // float32: the projections computed in float, positions, velocities, predicted
+           // positions and multipliers stored in float (docs/solvers.md, "Precision")
 };
 
 const char* to_string(Precision precision);  // "double", "float"
 // Parses the names above; returns false when unknown.
 bool parse_precision(const std::string& name, Precision& out);
+
+// The CPUs this process may run on (its affinity mask), at least 1, and at most the share in the
+// environment variable PBDBENCH_CORES when it holds a whole number >= 1 (sweep --jobs N gives
+// each of its runs max(1, cores / N)): what solver.threads = 0 means.
+inline constexpr const char* kCoresVariable = "PBDBENCH_CORES";
+int available_cores();
+
+// solver.threads resolved: `threads` when >= 1, else available_cores().
+int resolve_threads(int threads);
 
 // The ids of the seed listing's departures from Mueller et al. 2007 that solver.seed.fixes may
 // correct, "D1" ... "D11" (docs/seed-departures.md).
@@ -70,8 +79,14 @@ struct SolverOptions {
   double contact_margin = 0.0;      // solver.contact_margin: m, >= 0; contacts with C < margin
                                     // at the predicted positions are built each substep
   Precision precision = Precision::Double;  // solver.precision: pbd and xpbd, "double" or
-                                    // "float" (the state rounded to float32 at every write);
-                                    // pbd-seed is float by its D10, the others ignore it
+                                    // "float" (the projections computed in float32, the state
+                                    // stored as float32); pbd-seed is float by its D10, the
+                                    // others ignore it
+  int threads = 1;                  // solver.threads: threads of the colored and Jacobi sweeps
+                                    // (pbd, xpbd); 0 = the cores this process may run on
+                                    // (available_cores(): its share under sweep --jobs). 1 by
+                                    // default: on the shared 2-core machines measured, 2
+                                    // threads were slower (docs/performance.md)
 
   // [solver.pbd]: Mueller et al. 2007.
   bool pbd_stiffness_correction = false;  // solver.pbd.stiffness_correction: k' = 1-(1-k)^(1/n)

@@ -11,9 +11,13 @@
 //   contact projected with k = 1 when C < 0                                    (lines 9-11)
 //   v_i = (p_i - x_i) / h,  x_i = p_i                                          (lines 12-15)
 //   velocity pass: friction and restitution on the touching contacts           (line 16)
-// With solver.precision = "float" the state is stored in float32: x and v at the start of the
-// step, and every write of x, v and p after it, are rounded to float (docs/solvers.md,
-// "Precision"); the arithmetic stays double.
+// The sweeps run compiled (solvers/compiled_projection.hpp) in the run's precision: with
+// solver.precision = "float" the projections compute in float32, and x, v and p are stored as
+// float32 (docs/solvers.md, "Precision"). The per-item path (ProjectionPath::PerItem: each item
+// evaluated by core/constraint_functions.hpp and projected by solvers/kernels.hpp, in double with
+// the projections' state rounded to float at every write) is the reference the compiled path is
+// tested against. Prediction and velocity update compute in float too; friction and restitution
+// compute in double and round what they write.
 #include <algorithm>
 #include <limits>
 #include <memory>
@@ -21,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "solvers/compiled_projection.hpp"
 #include "solvers/kernels.hpp"
 #include "solvers/ordering.hpp"
 #include "solvers/step_common.hpp"
@@ -33,12 +38,15 @@ namespace {
 
 class PbdSolver final : public Solver {
  public:
-  PbdSolver(const SolverOptions& options, const Model& model)
+  PbdSolver(const SolverOptions& options, const Model& model, ProjectionPath path)
       : options_(options),
         particles_(model.particle_count()),
         constraints_(model.constraint_count()),
         ordering_(model, options),
         work_(model.particle_count()) {
+    if (path != ProjectionPath::PerItem)
+      compiled_ = compile_projection(model, options, ProjectionRule::Pbd, ordering_,
+                                     path == ProjectionPath::CompiledOneByOne);
     stiffness_.reserve(model.constraints.size());
     for (const Constraint& c : model.constraints)
       stiffness_.push_back(options.pbd_stiffness_correction
@@ -74,20 +82,26 @@ class PbdSolver final : public Solver {
           round_row_to_float(x, a.particle);
           round_row_to_float(v, a.particle);
         }
-      apply_gravity(model, h, v);
-      if (single) round_to_float(v);
+      apply_gravity(model, h, v, options_.precision);
       damp_velocities(bodies_, model.inv_mass, x, v, options_.pbd_velocity_damping);
       if (single && options_.pbd_velocity_damping != 0.0) round_to_float(v);
-      predict_positions(model, x, v, h, work_.p);
-      if (single) round_to_float(work_.p);
+      predict_positions(model, x, v, h, work_.p, options_.precision);
       work_.v_before = v;
       timer.lap(report.time_predict);
 
       find_substep_contacts(model, t_end, options_.contact_margin, x, ordering_, work_, report);
       timer.lap(report.time_contacts);
 
-      run_sweeps(model, options_, ordering_, state.step, s, nullptr, work_, report,
-                 [&](int j, Stencil& st) { return project(model, j, t_end, st); });
+      if (compiled_) {
+        compiled_->set_substep(model, h);
+        compiled_->begin_substep(model, work_.p, x, work_.contacts, t_end, ordering_);
+        compiled_->sweeps(options_.iterations, state.step, s, ordering_, report);
+        compiled_->end_substep(work_.p, nullptr, work_.contact_lambda, work_.contact_active);
+        for (char a : work_.contact_active) report.active_contacts += a;
+      } else {
+        run_sweeps(model, options_, ordering_, state.step, s, nullptr, work_, report,
+                   [&](int j, Stencil& st) { return project(model, j, t_end, st); });
+      }
       timer.lap(report.time_project);
 
       finish_substep(model, t_end, h, work_, x, v, options_.precision);
@@ -121,11 +135,13 @@ class PbdSolver final : public Solver {
   std::vector<double> stiffness_;         // (m) k, or k' with the stiffness correction
   std::vector<std::vector<int>> bodies_;  // for velocity damping
   SubstepScratch work_;                   // scratch, kept between steps
+  std::unique_ptr<CompiledProjection> compiled_;  // null on the per-item path
 };
 
 }  // namespace
 
-std::unique_ptr<Solver> make_pbd_solver(const SolverOptions& options, const Model& model) {
+std::unique_ptr<Solver> make_pbd_solver(const SolverOptions& options, const Model& model,
+                                        ProjectionPath path) {
   // A FEM element is a material (Pa); PBD's per-constraint stiffness k is not one.
   const bool fem_constraints = std::any_of(model.constraints.begin(), model.constraints.end(),
                                            [](const Constraint& c) { return is_fem_kind(c.kind); });
@@ -133,7 +149,7 @@ std::unique_ptr<Solver> make_pbd_solver(const SolverOptions& options, const Mode
     throw std::invalid_argument(
         "pbd has no FEM material: its stiffness k is not a material; use xpbd or a reference "
         "solver (the model has " + std::to_string(model.elements.size()) + " FEM elements)");
-  return std::make_unique<PbdSolver>(options, model);
+  return std::make_unique<PbdSolver>(options, model, path);
 }
 
 }  // namespace pbdbench

@@ -54,6 +54,7 @@ struct StepReport {
   double time_predict = 0.0;   // prediction (external forces), kinematic targets
   double time_contacts = 0.0;  // contact generation
   double time_project = 0.0;   // constraint projection sweeps
+  double time_residual = 0.0;  // xpbd: the residuals g and h (solver.xpbd.residuals)
   double time_velocity = 0.0;  // velocity update, damping, friction and restitution
   double time_linear = 0.0;    // reference integrators: Jacobian assembly, factorisation, solves
 };

@@ -15,8 +15,19 @@
 
 namespace pbdbench {
 
-std::unique_ptr<Solver> make_pbd_solver(const SolverOptions& options, const Model& model);
-std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model);
+// How pbd and xpbd project.
+enum class ProjectionPath : std::uint8_t {
+  Compiled,          // compiled blocks (solvers/compiled_projection.hpp): what runs
+  CompiledOneByOne,  // the same kernels item by item in the ordering's sequence (tests: the
+                     // levels and colours must give its bits)
+  PerItem,           // item by item through core/constraint_functions.hpp and solvers/kernels.hpp:
+                     // the reference implementation the compiled path is compared with
+};
+
+std::unique_ptr<Solver> make_pbd_solver(const SolverOptions& options, const Model& model,
+                                        ProjectionPath path = ProjectionPath::Compiled);
+std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model,
+                                         ProjectionPath path = ProjectionPath::Compiled);
 std::unique_ptr<Solver> make_pbd_seed_solver(const SolverOptions& options, const Model& model);
 
 // Throws std::invalid_argument when dt is not a finite positive number, or when the model or

@@ -45,11 +45,14 @@ struct SubstepScratch {
   JacobiAccumulator jacobi;                     // Jacobi: the corrections of this sweep
 };
 
-// v_i += h g for the dynamic particles (inv_mass > 0).
-void apply_gravity(const Model& model, double h, Points& v);
+// v_i += h g for the dynamic particles (inv_mass > 0). With Precision::Float in float arithmetic
+// (h and g rounded to float, the sum rounded to float): v must hold floats.
+void apply_gravity(const Model& model, double h, Points& v, Precision precision = Precision::Double);
 
-// p = x, then p_i += h v_i for the dynamic particles.
-void predict_positions(const Model& model, const Points& x, const Points& v, double h, Points& p);
+// p = x, then p_i += h v_i for the dynamic particles; with Precision::Float in float arithmetic
+// (x and v must hold floats).
+void predict_positions(const Model& model, const Points& x, const Points& v, double h, Points& p,
+                       Precision precision = Precision::Double);
 
 // The contacts of the substep at the predicted positions work.p (find_contacts at t_end with
 // `margin`); the ordering is told of them (and of x, the positions at the start of the substep),
@@ -141,9 +144,9 @@ void run_sweeps(const Model& model, const SolverOptions& options, const Ordering
 }
 
 // v_i = (p_i - x_i) / h for the dynamic particles and x = p; then the velocity pass (friction
-// and restitution) on the substep's contacts, from work.v_before. With Precision::Float each
-// v_i is rounded to float when written (x = p is float already), and so is every velocity the
-// velocity pass changes.
+// and restitution) on the substep's contacts, from work.v_before. With Precision::Float the
+// velocity update is float arithmetic (p and x hold floats), and every velocity the velocity pass
+// changes is computed in double and rounded to float.
 void finish_substep(const Model& model, double t_end, double h, SubstepScratch& work, Points& x,
                     Points& v, Precision precision = Precision::Double);
 

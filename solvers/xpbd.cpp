@@ -18,9 +18,12 @@
 // After the last substep State::lambda is turned into forces: lambda_j / h^2 (N for a distance
 // constraint), so that grad_i C_j lambda_j is the force of constraint j on particle i, as for
 // every solver (core/state.hpp).
-// With solver.precision = "float" the state is stored in float32: x and v at the start of the
-// step, and every write of x, v, x~, the iterate, x_n and lambda after it, are rounded to float
-// (docs/solvers.md, "Precision"); the arithmetic stays double, and so does the final lambda / h^2.
+// The sweeps run compiled (solvers/compiled_projection.hpp) in the run's precision: with
+// solver.precision = "float" the projections compute in float32 and x, v, x~ and the multipliers
+// are stored as float32 (docs/solvers.md, "Precision"); the residuals and the final lambda / h^2
+// are computed in double. The per-item path (ProjectionPath::PerItem: solvers/kernels.hpp in
+// double, the state rounded to float at every write) is the reference the compiled path is tested
+// against.
 //
 // FEM strain kinds (StVK and linear elements; Macklin et al. 2016, sec. 6.3) are vector
 // constraints: each is updated as a block (fem::xpbd_strain_update, eq. 16 on its components), its
@@ -42,6 +45,7 @@
 #include <vector>
 
 #include "core/contacts.hpp"
+#include "solvers/compiled_projection.hpp"
 #include "core/fem.hpp"
 #include "solvers/kernels.hpp"
 #include "solvers/ordering.hpp"
@@ -54,7 +58,7 @@ namespace {
 
 class XpbdSolver final : public Solver {
  public:
-  XpbdSolver(const SolverOptions& options, const Model& model)
+  XpbdSolver(const SolverOptions& options, const Model& model, ProjectionPath path)
       : options_(options),
         particles_(model.particle_count()),
         constraints_(model.constraint_count()),
@@ -68,6 +72,12 @@ class XpbdSolver final : public Solver {
       strain_alpha_.push_back(fem::strain_compliance(model.elements[static_cast<size_t>(c.element)]));
     }
     strain_lambda_.assign(strain_alpha_.size(), fem::Vec6::Zero());
+    // The compiled sweeps take the scalar kinds; a model with strain-vector constraints runs on
+    // the per-item path.
+    const bool strain = !strain_alpha_.empty();
+    if (path != ProjectionPath::PerItem && !strain)
+      compiled_ = compile_projection(model, options, ProjectionRule::Xpbd, ordering_,
+                                     path == ProjectionPath::CompiledOneByOne);
   }
 
   std::string name() const override { return "xpbd"; }
@@ -101,10 +111,8 @@ class XpbdSolver final : public Solver {
           round_row_to_float(x, a.particle);
           round_row_to_float(v, a.particle);
         }
-      apply_gravity(model, h, v);
-      if (single) round_to_float(v);
-      predict_positions(model, x, v, h, x_pred_);
-      if (single) round_to_float(x_pred_);
+      apply_gravity(model, h, v, options_.precision);
+      predict_positions(model, x, v, h, x_pred_, options_.precision);
       work_.p = x_pred_;
       work_.v_before = v;
       std::fill(lambda.begin(), lambda.end(), 0.0);
@@ -114,10 +122,20 @@ class XpbdSolver final : public Solver {
       find_substep_contacts(model, t_end, options_.contact_margin, x, ordering_, work_, report);
       timer.lap(report.time_contacts);
 
-      run_sweeps(model, options_, ordering_, state.step, s, &lambda, work_, report,
-                 [&](int j, Stencil& st) { return project(model, j, t_end, h, x, lambda, st); });
-      if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, h, lambda, report);
+      if (compiled_) {
+        compiled_->set_substep(model, h);
+        compiled_->begin_substep(model, work_.p, x, work_.contacts, t_end, ordering_);
+        compiled_->sweeps(options_.iterations, state.step, s, ordering_, report);
+        compiled_->end_substep(work_.p, s == substeps - 1 ? &lambda : nullptr, work_.contact_lambda,
+                               work_.contact_active);
+        for (char a : work_.contact_active) report.active_contacts += a;
+      } else {
+        run_sweeps(model, options_, ordering_, state.step, s, &lambda, work_, report,
+                   [&](int j, Stencil& st) { return project(model, j, t_end, h, x, lambda, st); });
+      }
       timer.lap(report.time_project);
+      if (options_.xpbd_residuals && s == substeps - 1) residuals(model, t_end, h, lambda, report);
+      timer.lap(report.time_residual);
 
       finish_substep(model, t_end, h, work_, x, v, options_.precision);
       timer.lap(report.time_velocity);
@@ -182,26 +200,30 @@ class XpbdSolver final : public Solver {
       if (w > 0.0) g.row(i) = (p.row(i) - x_pred_.row(i)) / w;
     }
     double h2 = 0.0;
-    for (size_t j = 0; j < model.constraints.size(); ++j) {
-      const Constraint& c = model.constraints[j];
-      if (is_strain_kind(c.kind)) {  // g -= J^T lambda, h = C + alpha~ lambda (vectors)
-        const int slot = strain_slot_[j];
-        const fem::StrainEval e = fem::eval_strain(model.elements[static_cast<size_t>(c.element)], p);
-        const fem::Vec6& l = strain_lambda_[static_cast<size_t>(slot)];
+    if (compiled_) {
+      h2 = compiled_->constraint_residuals(model, p, g);
+    } else {
+      for (size_t j = 0; j < model.constraints.size(); ++j) {
+        const Constraint& c = model.constraints[j];
+        if (is_strain_kind(c.kind)) {  // g -= J^T lambda, h = C + alpha~ lambda (vectors)
+          const int slot = strain_slot_[j];
+          const fem::StrainEval e = fem::eval_strain(model.elements[static_cast<size_t>(c.element)], p);
+          const fem::Vec6& l = strain_lambda_[static_cast<size_t>(slot)];
+          for (int i = 0; i < arity(c.kind); ++i)
+            for (int k = 0; k < e.components; ++k)
+              g.row(c.particles[static_cast<size_t>(i)]) -=
+                  l(k) * e.grad[static_cast<size_t>(k)][static_cast<size_t>(i)].transpose();
+          const fem::Vec6 hj = e.C + strain_alpha_[static_cast<size_t>(slot)] * l / (h * h);
+          h2 += hj.squaredNorm();  // its entries past the components are 0
+          continue;
+        }
+        const ConstraintEval e = eval_constraint(model, c, p);
         for (int i = 0; i < arity(c.kind); ++i)
-          for (int k = 0; k < e.components; ++k)
-            g.row(c.particles[static_cast<size_t>(i)]) -=
-                l(k) * e.grad[static_cast<size_t>(k)][static_cast<size_t>(i)].transpose();
-        const fem::Vec6 hj = e.C + strain_alpha_[static_cast<size_t>(slot)] * l / (h * h);
-        h2 += hj.squaredNorm();  // its entries past the components are 0
-        continue;
+          g.row(c.particles[static_cast<size_t>(i)]) -=
+              lambda[j] * e.grad[static_cast<size_t>(i)].transpose();
+        const double hj = e.C + coefficients_[j].alpha_tilde * lambda[j];
+        h2 += hj * hj;
       }
-      const ConstraintEval e = eval_constraint(model, c, p);
-      for (int i = 0; i < arity(c.kind); ++i)
-        g.row(c.particles[static_cast<size_t>(i)]) -=
-            lambda[j] * e.grad[static_cast<size_t>(i)].transpose();
-      const double hj = e.C + coefficients_[j].alpha_tilde * lambda[j];
-      h2 += hj * hj;
     }
     for (size_t k = 0; k < work_.contacts.size(); ++k) {
       const double lambda_k = work_.contact_lambda[k];
@@ -233,11 +255,13 @@ class XpbdSolver final : public Solver {
   // Scratch, kept between steps to avoid reallocation.
   Points x_pred_;        // (n x 3) m, x~, the predicted positions
   SubstepScratch work_;  // work_.p is the iterate x of Algorithm 1
+  std::unique_ptr<CompiledProjection> compiled_;  // null on the per-item path
 };
 
 }  // namespace
 
-std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model) {
+std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Model& model,
+                                         ProjectionPath path) {
   // FEM elements enter xpbd only through their constraint form (the FEM kinds: Macklin and
   // Mueller 2021 for the stable neo-Hookean, Macklin et al. 2016 for StVK and linear); corotated
   // has none.
@@ -253,7 +277,7 @@ std::unique_ptr<Solver> make_xpbd_solver(const SolverOptions& options, const Mod
       throw std::invalid_argument("xpbd: constraint " + std::to_string(j) + " (" +
                                   to_string(model.constraints[j].kind) +
                                   ") has damping: the strain-vector constraints have none");
-  return std::make_unique<XpbdSolver>(options, model);
+  return std::make_unique<XpbdSolver>(options, model, path);
 }
 
 }  // namespace pbdbench

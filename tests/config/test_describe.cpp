@@ -169,3 +169,32 @@ TEST(Describe, DocsContainTheSchema) {
 
 }  // namespace
 }  // namespace pbdbench::config
+
+namespace pbdbench::config {
+namespace {
+
+TEST(Describe, ForAReaderFitsTheWidthShowsTheSolversKeysAndWhatItReads) {
+  const std::string chain = "[scene]\nkind = \"chain\"\nlinks = 4\nstiffness = 0.5\ncompliance = 1e-3\n";
+  const Config xpbd = load_text(chain, "d.toml", sets({"solver.name=xpbd"}));
+  const Config pbd = load_text(chain, "d.toml", sets({"solver.name=pbd"}));
+  for (const Config* c : {&xpbd, &pbd}) {
+    std::istringstream lines(describe_config(*c, false, 100));
+    std::string line;
+    while (std::getline(lines, line)) EXPECT_LE(line.size(), 100u) << line;
+  }
+  const std::string x = describe_config(xpbd, false, 100), p = describe_config(pbd, false, 100);
+  EXPECT_TRUE(contains(x, "scene.compliance = 0.001"));
+  EXPECT_FALSE(contains(x, "scene.stiffness ="));
+  EXPECT_FALSE(contains(x, "solver.seed."));
+  EXPECT_TRUE(contains(x, "alpha = 0.001"));
+  EXPECT_TRUE(contains(p, "scene.stiffness = 0.5"));
+  EXPECT_FALSE(contains(p, "scene.compliance ="));
+  EXPECT_TRUE(contains(p, "solver.pbd.stiffness_correction"));
+  EXPECT_TRUE(contains(p, "k = 0.5"));
+  const std::string all = describe_config(pbd, true, 100);
+  EXPECT_TRUE(contains(all, "scene.compliance = 0.001"));
+  EXPECT_TRUE(contains(all, "solver.seed."));
+}
+
+}  // namespace
+}  // namespace pbdbench::config

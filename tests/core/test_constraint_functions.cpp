@@ -6,6 +6,8 @@
 
 #include <numbers>
 
+#include "core/fem.hpp"
+#include "core/generators.hpp"
 #include "tests/core/test_support.hpp"
 
 namespace pbdbench {
@@ -175,6 +177,34 @@ TEST(ConstraintFunctions, EvalConstraintDispatchesOnTheModelIndices) {
   const ConstraintEval eb = eval_constraint(b, x), direct = eval_bending(row(2), row(3), row(0), row(5), 1.0);
   EXPECT_EQ(eb.C, direct.C);
   for (int k = 0; k < 4; ++k) EXPECT_EQ(eb.grad[static_cast<size_t>(k)], direct.grad[static_cast<size_t>(k)]);
+}
+
+TEST(ConstraintFunctions, ConstraintValuesAreEvalConstraintBitForBit) {
+  // A cloth (distance, bending) and a tet block with FEM elements (distance, volume, the FEM
+  // kinds), moved at random: constraint_values gives each C that eval_constraint gives, the same
+  // bits, whether it evaluates a constraint alone or beside a neighbour of its kind.
+  Model m;
+  ClothSpec cloth;
+  cloth.nx = cloth.ny = 9;
+  add_cloth(m, cloth);
+  TetBlockSpec block;
+  block.origin = Vec3(0.0, 2.0, 0.0);
+  const int first_tet = static_cast<int>(m.tets.size());
+  add_tet_block(m, block);
+  std::vector<std::array<int, 4>> tets(m.tets.begin() + first_tet, m.tets.end());
+  fem::add_fem_elements(m, tets, Material::StableNeoHookean, 1e6, 0.3);
+  Random rng(31);
+  Points x = m.rest_positions;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) x.row(i) += 0.02 * rng.vec(-1, 1).transpose();
+  std::vector<double> values;
+  constraint_values(m, x, values);
+  ASSERT_EQ(values.size(), m.constraints.size());
+  int kinds = 0;
+  for (size_t j = 0; j < m.constraints.size(); ++j) {
+    EXPECT_EQ(values[j], eval_constraint(m, m.constraints[j], x).C) << "constraint " << j;
+    kinds |= 1 << static_cast<int>(m.constraints[j].kind);
+  }
+  EXPECT_EQ(kinds, 31);  // all five kinds were compared
 }
 
 TEST(ConstraintFunctions, NormalizedErrorIsRelativeForLengthsAndVolumes) {

@@ -188,6 +188,37 @@ class CliTest(unittest.TestCase):
             self.assertEqual(attr(f, "status"), "incomplete")
             self.assertIn("interrupted", attr(f, "status_reason"))
 
+    def test_a_solver_that_cannot_run_the_scene_is_bad_input(self):
+        # Found after parsing (the solver refuses the scene), still exit 2 and no file.
+        out = os.path.join(self.dir, "cube.h5")
+        r = pbdbench("run", "soft_cube_drop", "--solver", "ref-be", "--set", "time.duration=0.05", "--out", out)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertIn("does not simulate contacts", r.stderr)
+        self.assertIn("soft_cube_drop.toml", r.stderr)
+        self.assertFalse(os.path.exists(out))
+
+    def test_series_has_a_header_and_says_where_the_datasets_live(self):
+        r = pbdbench("series")
+        self.assertEqual(r.returncode, 0)
+        self.assertIn("/series/<name>", r.stdout)
+        header = [l for l in r.stdout.splitlines() if l.startswith("name")]
+        self.assertEqual(header[0].split(), ["name", "dim", "units", "doc"])
+
+    def test_a_collapse_is_complete_with_warnings_in_the_run_line_and_the_summary(self):
+        # Issue 16's example: a stable neo-Hookean bar (E = 2e5 Pa, nu = 0.45), xpbd, 10 iterations.
+        out = os.path.join(self.dir, "bar.h5")
+        r = pbdbench("run", "cantilever_fem", "--set", "scene.youngs_modulus=2e5", "--set", "scene.poisson_ratio=0.45",
+                     "--set", "solver.substeps=1", "--set", "solver.iterations=10", "--set", "time.duration=0.5",
+                     "--out", out, "--no-xdmf")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("complete with 2 warnings", r.stdout)
+        self.assertIn("WARNING volume @1", r.stdout)
+        r = pbdbench("summary", out)
+        self.assertIn("complete !2", r.stdout)
+        self.assertIn("tet volume lost", r.stdout)
+        r = pbdbench("summary", "--csv", out)
+        self.assertIn("energy_gain @", r.stdout)
+
     def test_list_describe_summary_series(self):
         r = pbdbench("list")
         self.assertEqual(r.returncode, 0)
@@ -245,7 +276,9 @@ class CliTest(unittest.TestCase):
             self.assertTrue(np.all(np.isnan(f["series/support_force"][()])))
 
     def test_compare_two_runs_writes_hdf5_png_and_summary(self):
-        xpbd, pbd = self.chain("xpbd.h5"), self.chain("pbd.h5", solver="pbd")
+        # Frames every 10 steps (the default is a frame each 1/60 s, every step here).
+        xpbd = self.chain("xpbd.h5", "output.frame_every=10")
+        pbd = self.chain("pbd.h5", "output.frame_every=10", solver="pbd")
         out, png = os.path.join(self.dir, "cmp.h5"), os.path.join(self.dir, "cmp.png")
         r = pbdbench("compare", xpbd, pbd, "--out", out, "--plot", png)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
@@ -284,8 +317,8 @@ class CliTest(unittest.TestCase):
             self.assertTrue(np.all(np.isnan(f["compare/observables/support_force_reference"][()])))
 
     def test_compare_interpolates_a_sparser_reference_and_warns(self):
-        fine = self.chain("fine.h5", "time.dt=0.008333333333333333", "time.duration=0.5")
-        coarse = self.chain("coarse.h5", "time.duration=0.5")
+        fine = self.chain("fine.h5", "time.dt=0.008333333333333333", "time.duration=0.5", "output.frame_every=10")
+        coarse = self.chain("coarse.h5", "time.duration=0.5", "output.frame_every=10")
         r = pbdbench("compare", fine, coarse, "--until", "0.4")
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         # The fine run's frames every 10 steps of 1/120 s, the coarse one's every 1/6 s: up to 0.4 s,

@@ -77,7 +77,7 @@ class OutputPaths(unittest.TestCase):
         return os.path.join(self.dir, name)
 
     def refused(self, out, *why):
-        r = pbdbench("run", "spring", "--set", "time.duration=0.1", "--out", out, "--quiet")
+        r = pbdbench("run", "spring", "--set", "time.duration=0.1", "--out", out, "--quiet", "--no-xdmf")
         self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
         self.assertIn("--out " + out, r.stderr)
         for w in why:
@@ -127,7 +127,7 @@ class OutputPaths(unittest.TestCase):
     def test_a_run_file_is_replaced(self):
         out = self.path("run.h5")
         for solver in ("xpbd", "pbd"):
-            r = pbdbench("run", "spring", "--solver", solver, "--set", "time.duration=0.1", "--out", out, "--quiet")
+            r = pbdbench("run", "spring", "--solver", solver, "--set", "time.duration=0.1", "--out", out, "--quiet", "--no-xdmf")
             self.assertEqual(r.returncode, 0, r.stderr)
             with h5py.File(out, "r") as f:
                 self.assertEqual(attr(f, "solver"), solver)
@@ -135,7 +135,7 @@ class OutputPaths(unittest.TestCase):
 
     def test_a_missing_folder_is_created_and_a_read_only_one_is_named(self):
         out = self.path("new/sub/run.h5")
-        self.assertEqual(pbdbench("run", "spring", "--set", "time.duration=0.1", "--out", out, "--quiet").returncode, 0)
+        self.assertEqual(pbdbench("run", "spring", "--set", "time.duration=0.1", "--out", out, "--quiet", "--no-xdmf").returncode, 0)
         if os.geteuid() == 0:
             self.skipTest("root writes into read-only folders")
         ro = self.path("ro")
@@ -155,11 +155,11 @@ class OneWriter(unittest.TestCase):
 
     def test_a_second_writer_is_refused_naming_the_first(self):
         out = os.path.join(self.dir, "run.h5")
-        first = subprocess.Popen([BIN, "run", *LONG_RUN, "--out", out, "--quiet"],
+        first = subprocess.Popen([BIN, "run", *LONG_RUN, "--out", out, "--quiet", "--no-xdmf"],
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             wait_for(lambda: os.path.exists(out), what="the first run's file")
-            r = pbdbench("run", "spring", "--out", out, "--quiet")
+            r = pbdbench("run", "spring", "--out", out, "--quiet", "--no-xdmf")
             self.assertEqual(r.returncode, 2, r.stderr)
             self.assertIn(f"pid {first.pid}", r.stderr)
             self.assertIn(f"host {socket.gethostname()}", r.stderr)
@@ -174,7 +174,7 @@ class OneWriter(unittest.TestCase):
 
     def test_the_lock_of_a_killed_writer_is_taken_over(self):
         out = os.path.join(self.dir, "run.h5")
-        p = subprocess.Popen([BIN, "run", *LONG_RUN, "--out", out, "--quiet"],
+        p = subprocess.Popen([BIN, "run", *LONG_RUN, "--out", out, "--quiet", "--no-xdmf"],
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         wait_for(lambda: os.path.exists(out), what="the file")
         p.send_signal(signal.SIGKILL)
@@ -182,7 +182,7 @@ class OneWriter(unittest.TestCase):
         self.assertTrue(os.path.exists(out + ".lock"))  # left behind, but no longer held
         with h5py.File(out, "r") as f:
             self.assertEqual(attr(f, "status"), "incomplete")
-        r = pbdbench("run", "spring", "--set", "time.duration=0.1", "--out", out, "--quiet")
+        r = pbdbench("run", "spring", "--set", "time.duration=0.1", "--out", out, "--quiet", "--no-xdmf")
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertEqual(sorted(os.listdir(self.dir)), ["run.h5"])
 
@@ -198,7 +198,7 @@ class Interrupts(unittest.TestCase):
     def test_sigint_and_sigterm_stop_a_long_step_within_a_second(self):
         for sig in (signal.SIGINT, signal.SIGTERM):
             out = os.path.join(self.dir, f"long-{sig}.h5")
-            p = subprocess.Popen([BIN, "run", *LONG_STEP, "--out", out, "--quiet"],
+            p = subprocess.Popen([BIN, "run", *LONG_STEP, "--out", out, "--quiet", "--no-xdmf"],
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             wait_for(lambda: os.path.exists(out), what="the file")
             time.sleep(1.0)  # well inside the first step (minutes)

@@ -117,8 +117,8 @@ TEST(Runner, SameInputsGiveIdenticalSeries) {
       const config::Config cfg = config::load(info.file.string(), o);
       const fs::path a = temp_file("det_a.h5"), b = temp_file("det_b.h5");
       if (std::string(solver) != "xpbd" && !config::build_scene(cfg).model.elements.empty()) {
-        // pbd and pbd-seed have no FEM material: they refuse the FEM scenes.
-        EXPECT_THROW(run_config(cfg, a), std::invalid_argument) << info.name << " " << solver;
+        // pbd and pbd-seed have no FEM material: they refuse the FEM scenes, as bad input (exit 2).
+        EXPECT_THROW(run_config(cfg, a), config::ConfigError) << info.name << " " << solver;
         continue;
       }
       run_config(cfg, a);
@@ -403,4 +403,34 @@ TEST(Runner, APlanBeyondTheMachineIsRefusedBeforeAnyFileUnlessForced) {
     EXPECT_NE(what.find("--force"), std::string::npos) << what;
   }
   EXPECT_FALSE(fs::exists(out));
+}
+
+// Issue 16's example: a stable neo-Hookean bar (E = 2e5 Pa, nu = 0.45) under xpbd with one step
+// of 10 iterations per frame collapses (a third of its volume in the first steps) and gains
+// energy without crossing any explosion limit: the run is complete and says so with warnings,
+// and its FEM elements count in the constraint error. The same bar with 40 substeps of one
+// iteration (the catalog's setting) keeps its volume and gets no volume warning.
+TEST(Runner, CollapsingFemBarIsWarnedNotSilentlyComplete) {
+  const std::vector<config::Override> bar = {{"scene.youngs_modulus", "2e5"},
+                                             {"scene.poisson_ratio", "0.45"},
+                                             {"time.duration", "0.5"}};
+  std::vector<config::Override> collapsing = bar;
+  collapsing.push_back({"solver.substeps", "1"});
+  collapsing.push_back({"solver.iterations", "10"});
+  const fs::path out = temp_file("collapsing_bar.h5");
+  const RunOutcome r = run_config(config::load(PBDBENCH_SOURCE_DIR "/scenarios/cantilever_fem.toml", collapsing), out);
+  EXPECT_EQ(r.status, RunStatus::Complete);
+  const RunFileData d = read_run_file(out);
+  const std::vector<std::string> w = d.warnings();
+  ASSERT_EQ(w.size(), 2u) << d.attributes.at("warnings");
+  EXPECT_EQ(w[0].rfind("energy_gain @", 0), 0u) << w[0];
+  EXPECT_EQ(w[1].rfind("volume @1 ", 0), 0u) << w[1];
+  EXPECT_EQ(d.numbers.at("warning_count"), 2.0);
+  EXPECT_EQ(r.warnings, w);
+  EXPECT_GT(d.series.at("constraint_error_max").back(), 0.1) << "the FEM elements count";
+
+  const fs::path ok = temp_file("holding_bar.h5");
+  run_config(config::load(PBDBENCH_SOURCE_DIR "/scenarios/cantilever_fem.toml", bar), ok);
+  const RunFileData held = read_run_file(ok);
+  EXPECT_EQ(held.attributes.at("warnings").find("volume"), std::string::npos) << held.attributes.at("warnings");
 }

@@ -674,29 +674,34 @@ Model tet_and_segment() {
   return m;
 }
 
-TEST(metrics, FemKindsAreLeftOutOfTheConstraintError) {
+TEST(metrics, FemKindsCountByTheirDeviationFromTheRestShape) {
   const Model m = tet_and_segment();
   ASSERT_EQ(m.constraint_count(), 3);
   ASSERT_EQ(m.group_names, (std::vector<std::string>{"stretch", "fem_deviatoric", "fem_hydrostatic"}));
-  const State s = rest_state(m);
-  const Sample out = measure(m, s, measure_baseline(m, s));
-  // At rest C_D = sqrt(3) and C_H = -mu / lambda_snh: counted, they would dominate.
-  EXPECT_TRUE(Near(out.constraint_error_max, 0.25));
-  EXPECT_TRUE(Near(out.constraint_error_rms, 0.25));  // over the one measured constraint
-  ASSERT_EQ(out.groups.size(), 3u);
-  EXPECT_EQ(out.groups[0].count, 1);
-  EXPECT_TRUE(Near(out.groups[0].max, 0.25));
-  for (size_t g : {1u, 2u}) {  // the FEM groups have no error at all: NaN, not 0
-    EXPECT_EQ(out.groups[g].count, 0) << m.group_names[g];
-    EXPECT_TRUE(std::isnan(out.groups[g].max)) << m.group_names[g];
-    EXPECT_TRUE(std::isnan(out.groups[g].rms)) << m.group_names[g];
+  State s = rest_state(m);
+  const MetricsBaseline base = measure_baseline(m, s);
+  // At rest the FEM constraints read 0 (C_D = sqrt(3), C_H = -mu / lambda_snh are their rest
+  // values), so only the segment's 0.25 shows.
+  const Sample rest = measure(m, s, base);
+  EXPECT_TRUE(Near(rest.constraint_error_max, 0.25));
+  EXPECT_TRUE(Near(rest.constraint_error_rms, 0.25 / std::sqrt(3.0)));  // over 3 constraints
+  ASSERT_EQ(rest.groups.size(), 3u);
+  for (size_t g : {1u, 2u}) {
+    EXPECT_EQ(rest.groups[g].count, 1) << m.group_names[g];
+    EXPECT_NEAR(rest.groups[g].max, 0.0, 1e-12) << m.group_names[g];
   }
-  // A model of FEM constraints only measures nothing: 0, as a model without constraints.
+  // The tet squashed to half its height along z (F = diag(1, 1, 0.5)): det F - 1 = -0.5, and
+  // sqrt(tr F^T F) = sqrt(2.25) = 1.5 against sqrt(3).
+  s.x(3, 2) = 0.5;
+  const Sample squashed = measure(m, s, base);
+  EXPECT_TRUE(Near(squashed.groups[2].max, 0.5)) << squashed.groups[2].max;
+  EXPECT_TRUE(Near(squashed.groups[1].max, (std::sqrt(3.0) - 1.5) / std::sqrt(3.0))) << squashed.groups[1].max;
+  EXPECT_TRUE(Near(squashed.constraint_error_max, 0.5));
+  // A model of FEM constraints only: a collapsing block never reads 0.
   Model only = tet_and_segment();
   only.constraints.erase(only.constraints.begin());
-  const Sample none = measure(only, s, measure_baseline(only, s));
-  EXPECT_EQ(none.constraint_error_max, 0.0);
-  EXPECT_EQ(none.constraint_error_rms, 0.0);
+  const Sample fem_only = measure(only, s, measure_baseline(only, s));
+  EXPECT_TRUE(Near(fem_only.constraint_error_max, 0.5));
 }
 
 // Psi_snh(s I) - Psi_snh(I) and Psi_corotated(s I), written out: with ls = lambda + mu,

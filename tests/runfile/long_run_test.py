@@ -28,7 +28,7 @@ def measure(exe, steps, out):
         "print(r.returncode, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
     cmd = [sys.executable, "-c", code, exe, "run", "hanging_chain", "--set", "time.dt=0.001",
            "--set", f"time.duration={steps / 1000.0}", "--set", "output.frame_every=1000",
-           "--out", out, "--quiet"]
+           "--out", out, "--quiet", "--no-xdmf"]
     r = subprocess.run(cmd, capture_output=True, text=True)
     rc, kb = r.stdout.split()
     if int(rc) != 0:

@@ -160,7 +160,8 @@ TEST(runfile_file, RoundTrip) {
   EXPECT_EQ(d.attributes.at("cxx_flags"), b.cxx_flags);
   const std::set<std::string> strings = {"status", "status_reason", "scenario", "scenario_file",
                                          "solver", "config", "created", "pbdbench_version",
-                                         "git_commit", "compiler", "build_type", "cxx_flags"};
+                                         "git_commit", "compiler", "build_type", "cxx_flags",
+                                         "warnings"};
   for (const auto& [name, value] : d.attributes)
     EXPECT_TRUE(strings.count(name)) << "unexpected string attribute " << name;
   EXPECT_EQ(d.attributes.size(), strings.size());
@@ -168,8 +169,10 @@ TEST(runfile_file, RoundTrip) {
   const std::map<std::string, double> numbers = {
       {"format_version", 1}, {"dt", 0.01}, {"steps_planned", 100},
       {"steps_completed", kRows - 1}, {"wall_time", 1.25}, {"exploded_step", -1},
-      {"exploded_time", -1.0}};
+      {"exploded_time", -1.0}, {"warning_count", 0}};
   EXPECT_EQ(d.numbers, numbers);
+  EXPECT_EQ(d.attributes.at("warnings"), "");
+  EXPECT_TRUE(d.warnings().empty());
   EXPECT_EQ(d.group_names, m.group_names);
 
   // Series: every table entry, plus one per group and group series.
@@ -419,6 +422,38 @@ TEST(runfile_file, FailedStatus) {
   EXPECT_STREQ(to_string(RunStatus::Complete), "complete");
   EXPECT_STREQ(to_string(RunStatus::Exploded), "exploded");
   EXPECT_STREQ(to_string(RunStatus::Failed), "failed");
+}
+
+TEST(runfile_file, WarningsAndVelocitiesRoundTrip) {
+  const fs::path path = temp_dir() / "run.h5";
+  const Model m = test::fixture_model();
+  Points x = m.rest_positions, v = Points::Constant(m.particle_count(), 3, 0.5);
+  {
+    RunFileWriter w(path, fixture_header(), m);
+    w.append_frame(0.0, x, &v);
+    w.append_frame(0.1, x);  // without velocities: NaN
+    w.set_warnings({"volume @3 (t = 0.03 s): tet volume lost 30 %", "energy_gain @4 (t = 0.04 s): x"});
+    w.finish(RunStatus::Complete, "", 0, 0.0);
+  }
+  const RunFileData d = read_run_file(path);
+  EXPECT_EQ(d.status(), "complete");
+  EXPECT_EQ(d.warnings(), (std::vector<std::string>{"volume @3 (t = 0.03 s): tet volume lost 30 %",
+                                                    "energy_gain @4 (t = 0.04 s): x"}));
+  EXPECT_EQ(d.numbers.at("warning_count"), 2.0);
+  const hid_t f = H5Fopen(path.string().c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t ds = H5Dopen2(f, "/frames/velocities", H5P_DEFAULT);
+  ASSERT_GE(ds, 0);
+  const hid_t space = H5Dget_space(ds);
+  hsize_t dims[3] = {0, 0, 0};
+  H5Sget_simple_extent_dims(space, dims, nullptr);
+  std::vector<double> all(static_cast<size_t>(dims[0] * dims[1] * dims[2]));
+  H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, all.data());
+  H5Sclose(space);
+  H5Dclose(ds);
+  H5Fclose(f);
+  ASSERT_EQ(dims[0], 2u);
+  EXPECT_EQ(all.front(), 0.5);
+  EXPECT_TRUE(std::isnan(all.back()));
 }
 
 TEST(runfile_file, DestroyedWithoutFinishStaysIncomplete) {

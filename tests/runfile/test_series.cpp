@@ -71,7 +71,7 @@ TEST(runfile_series, RequiredSeriesInOrder) {
 }
 
 TEST(runfile_series, ShapesUnitsDocsAndDeterminism) {
-  const std::set<std::string> timings = {"time_predict", "time_contacts", "time_project",
+  const std::set<std::string> timings = {"time_predict", "time_contacts", "time_project", "time_residual",
                                          "time_velocity", "time_linear", "wall_step",
                                          "shadow_time", "shadow_cost_ratio"};
   const std::set<std::string> vectors = {"linear_momentum", "angular_momentum",
@@ -164,6 +164,7 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   sh.time = 62.5;
   sh.cost_ratio = 63.5;
   sh.force_error = 68.5;
+  r.time_residual = 69.5;
   const SeriesRow row{32.5, 33, 34.5, &s, &r, &sh};
 
   const std::map<std::string, std::vector<double>> expected = {
@@ -188,8 +189,8 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"shadow_residual_h", {59.5}}, {"shadow_residual_position", {60.5}},
       {"shadow_iterations", {61}}, {"shadow_time", {62.5}}, {"shadow_cost_ratio", {63.5}},
       {"height_min", {64.5}}, {"sunk_count", {65}}, {"sunk_depth", {66.5}},
-      {"velocity_hf_rms", {67.5}}, {"shadow_force_error", {68.5}},
-      {"line_search_cuts", {69}}, {"barrier_energy", {70.5}}};
+      {"velocity_hf_rms", {67.5}}, {"shadow_force_error", {68.5}}, {"time_residual", {69.5}},
+      {"line_search_cuts", {70}}, {"barrier_energy", {71.5}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";

@@ -234,6 +234,49 @@ inline double max_abs_diff(const Points& a, const Points& b) {
   return (a - b).cwiseAbs().maxCoeff();
 }
 
+// A scene that exercises every write of the substep: distance, bending and volume constraints
+// (stiffness < 1, compliance and damping > 0), a plane with friction and restitution, a sphere
+// that oscillates, a kinematic particle on a circle, and particle-particle contacts.
+inline Model mixed_scene() {
+  Model m = empty_model(Vec3(0.0, -9.81, 0.0));
+  for (int j = 0; j < 4; ++j)
+    for (int i = 0; i < 4; ++i)
+      test::add_particle(m, Vec3(0.1 * i, 0.3 + 0.02 * i, 0.1 * j), 0.5 + 0.1 * ((i + j) % 3), 0.02);
+  for (int j = 0; j < 4; ++j)
+    for (int i = 0; i < 4; ++i) {
+      const int k = 4 * j + i;
+      if (i + 1 < 4) add_rest_distance(m, k, k + 1, 0.9, 1e-4).damping = 0.05;
+      if (j + 1 < 4) add_rest_distance(m, k, k + 4, 0.9, 1e-4);
+      if (i + 1 < 4 && j + 1 < 4) add_rest_distance(m, k, k + 5, 0.5, 1e-3);
+    }
+  add_bending(m, 5, 6, 1, 10, 0.1, 0.3, 1e-3).damping = 0.02;
+  const int t = test::add_particle(m, Vec3(0.5, 0.1, 0.5), 0.2);
+  test::add_particle(m, Vec3(0.6, 0.1, 0.5), 0.2);
+  test::add_particle(m, Vec3(0.5, 0.2, 0.5), 0.2);
+  test::add_particle(m, Vec3(0.5, 0.1, 0.6), 0.2);
+  add_volume(m, t, t + 1, t + 2, t + 3, 0.9 * 0.1 * 0.1 * 0.1 / 6.0, 0.8, 1e-6);
+  // A kinematic particle on a circle, tied to the cloth's corner.
+  const int kin = test::add_particle(m, Vec3(-0.1, 0.3, 0.0), 0.0);
+  Motion circle;
+  circle.kind = MotionKind::Circle;
+  circle.radius = 0.05;
+  circle.frequency = 1.5;
+  m.motions.push_back(circle);
+  m.attachments.back().motion = 0;
+  add_rest_distance(m, kin, 0, 1.0, 0.0);
+  m.planes.push_back({Vec3::UnitY(), 0.0, 0.3, 0.2});
+  Motion bob;
+  bob.kind = MotionKind::Oscillate;
+  bob.amplitude = Vec3(0.0, 0.05, 0.02);
+  bob.frequency = 2.0;
+  m.motions.push_back(bob);
+  m.spheres.push_back({Vec3(0.15, 0.2, 0.15), 0.1, SphereSide::Outside, 0.2, 0.3, 1});
+  m.particle_contact = true;
+  m.particle_restitution = 0.1;
+  m.particle_friction = 0.2;
+  return m;
+}
+
 inline const std::vector<ProjectionOrder>& all_orders() {
   static const std::vector<ProjectionOrder> orders = {
       ProjectionOrder::Sequential, ProjectionOrder::Reversed,

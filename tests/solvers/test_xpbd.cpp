@@ -259,7 +259,8 @@ TEST(Xpbd, JacobiAveragingLeavesGNonZeroAtTheFixedPoint) {
 
 TEST(Xpbd, ZeroComplianceEqualsPbdWithUnitStiffness) {
   // Macklin et al. 2016: with alpha = 0 XPBD is PBD with k = 1. One step from the same state,
-  // the same order: here bit for bit (the kernels do the same arithmetic).
+  // the same order: to round-off (the compiled kernels group the same operations differently:
+  // pbd multiplies by w_i / (w0 + w1), xpbd by 1 / D; measured 1e-17 m and 2e-15 m/s).
   const Model m = chain_model(6, 0.1, 1.3, Vec3(0, -9.81, 0), 1.0, 0.0);
   State s0 = rest_state(m);
   Random rng(4);
@@ -273,8 +274,8 @@ TEST(Xpbd, ZeroComplianceEqualsPbdWithUnitStiffness) {
     State sp = s0, sx = s0;
     make_solver(op, m)->step(m, sp, 0.01);
     make_solver(ox, m)->step(m, sx, 0.01);
-    EXPECT_EQ(max_abs_diff(sp.x, sx.x), 0.0) << to_string(order);
-    EXPECT_EQ(max_abs_diff(sp.v, sx.v), 0.0) << to_string(order);
+    EXPECT_LE(max_abs_diff(sp.x, sx.x), kRoundoff) << to_string(order);
+    EXPECT_LE(max_abs_diff(sp.v, sx.v), kRoundoff) << to_string(order);
   }
 }
 

@@ -1,0 +1,87 @@
+// Run health: warnings for what a reader would call a failure even when no explosion limit was
+// crossed (metrics/metrics.hpp explosion_reason). Pure bookkeeping over the samples of one run,
+// fed one step at a time by the runner; the run file keeps the warnings (root attribute
+// "warnings", one per line) and every summary shows them.
+//
+//   energy_gain   the total energy rose above its initial value by more than
+//                 energy_gain x the run's energy scale, in a scene with no energy source
+//                 (no kinematic particle or collider moves, no relaxation of rest values).
+//                 Energy scale: m g H + |E_kin(0)| + |E_el(0)| with m the dynamic mass, g the
+//                 gravity, H = max(2 x the initial extent, 1 mm).
+//   volume        |tet volume drift| or |enclosed surface volume drift| beyond volume_change.
+//   error_growth  the mean RMS constraint error grew in each quarter of the run, and the last
+//                 quarter's is above error_growth_ratio x the first's and above error_floor
+//                 (runs of at least 8 steps).
+//   tunnelling    a dynamic particle ended a step on the forbidden side of a collider by more
+//                 than its radius (a plane, a sphere or a bowl), or its path in the step went
+//                 through an outside sphere while both ends are outside.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/model.hpp"
+#include "core/state.hpp"
+#include "metrics/metrics.hpp"
+
+namespace pbdbench {
+
+struct HealthThresholds {
+  double energy_gain = 0.1;         // 1, of the energy scale
+  double volume_change = 0.1;       // 1, relative
+  double error_growth_ratio = 10.0;  // 1
+  double error_floor = 0.1;         // 1 (normalised constraint error: 10 % RMS)
+};
+
+struct RunWarning {
+  std::string code;     // "energy_gain", "volume", "error_growth", "tunnelling"
+  long step = 0;        // the first step at which it was seen
+  double time = 0.0;    // s, the same
+  std::string message;  // one line, with the numbers
+  std::string line() const;  // "code @step (t = ... s): message"
+};
+
+class HealthMonitor {
+ public:
+  HealthMonitor(const Model& model, const State& initial, const Sample& initial_sample,
+                long steps_planned, bool energy_sources, HealthThresholds thresholds = {});
+  // After each step k (1-based) with the state and its sample.
+  void observe(long step, const State& state, const Sample& sample);
+  // What was seen so far, in a fixed order (energy, volume, error growth, tunnelling).
+  std::vector<RunWarning> warnings() const;
+
+ private:
+  struct Worst {
+    bool seen = false;
+    long first_step = 0;
+    double first_time = 0.0;
+    double worst = 0.0;
+    long worst_step = 0;
+  };
+  const Model* model_;
+  HealthThresholds th_;
+  long steps_planned_;
+  bool energy_sources_;
+  double e0_, energy_scale_;
+  Points x_prev_;
+  Worst energy_, volume_, tunnel_;
+  std::string volume_what_;
+  long tunnel_particles_ = 0;  // the most particles tunnelled in one step
+  double quarter_sum_[4] = {0, 0, 0, 0};
+  long quarter_n_[4] = {0, 0, 0, 0};
+  long quarter_step_[4] = {0, 0, 0, 0};
+  double quarter_time_[4] = {0, 0, 0, 0};
+};
+
+// Particles that tunnelled in the step from x_prev to x (time t): the count and the deepest
+// depth beyond the particle's radius (m; a path through a sphere counts with depth 0).
+struct Tunnelled {
+  int count = 0;
+  double depth = 0.0;
+};
+Tunnelled tunnelled_particles(const Model& model, const Points& x_prev, const Points& x, double t);
+
+// The warnings as stored in a run file's "warnings" attribute: one line each ("" for none).
+std::string warnings_text(const std::vector<RunWarning>& warnings);
+
+}  // namespace pbdbench

@@ -1,0 +1,424 @@
+#include "runfile/xdmf.hpp"
+
+#include <H5Cpp.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/constraint_functions.hpp"
+#include "metrics/metrics.hpp"
+#include "runfile/output_guard.hpp"
+
+namespace pbdbench {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr const char* kMarker = "<!-- pbdbench export: ";
+
+[[noreturn]] void fail(const fs::path& path, const std::string& what) {
+  throw std::runtime_error(path.string() + ": " + what);
+}
+
+// A triangle mesh (collider geometry).
+struct Mesh {
+  std::vector<Vec3> points;
+  std::vector<std::array<int, 3>> triangles;
+};
+
+Mesh plane_quad(const PlaneCollider& p, const Vec3& around, double half) {
+  const double nn = p.normal.norm();
+  const Vec3 n = p.normal / nn;
+  const double offset = p.offset / nn;
+  const Vec3 c = around - (n.dot(around) + offset) * n;  // `around` projected onto the plane
+  Vec3 u = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  u = (u - u.dot(n) * n).normalized();
+  const Vec3 v = n.cross(u);
+  Mesh m;
+  m.points = {c - half * u - half * v, c + half * u - half * v, c + half * u + half * v, c - half * u + half * v};
+  m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+// A UV sphere; for a bowl only the half below the centre (along -up).
+Mesh sphere_mesh(const Vec3& c, double r, bool bowl, const Vec3& up) {
+  const int rings = 12, segments = 24;
+  Vec3 a = std::abs(up.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  a = (a - a.dot(up) * up).normalized();
+  const Vec3 b = up.cross(a);
+  Mesh m;
+  const int first_ring = bowl ? rings / 2 : 0;  // polar angle from +up: bowl keeps the lower half
+  for (int i = first_ring; i <= rings; ++i) {
+    const double theta = std::numbers::pi * i / rings;
+    for (int j = 0; j < segments; ++j) {
+      const double phi = 2.0 * std::numbers::pi * j / segments;
+      m.points.push_back(c + r * (std::cos(theta) * up + std::sin(theta) * (std::cos(phi) * a + std::sin(phi) * b)));
+    }
+  }
+  const int ring_count = rings - first_ring;
+  for (int i = 0; i < ring_count; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const int p0 = i * segments + j, p1 = i * segments + (j + 1) % segments;
+      const int q0 = p0 + segments, q1 = p1 + segments;
+      m.triangles.push_back({p0, q0, q1});
+      m.triangles.push_back({p0, q1, p1});
+    }
+  return m;
+}
+
+// Every collider at time t as one mesh.
+Mesh collider_mesh(const Model& model, double t, const Vec3& around, double half) {
+  Mesh all;
+  auto add = [&](const Mesh& m) {
+    const int base = static_cast<int>(all.points.size());
+    all.points.insert(all.points.end(), m.points.begin(), m.points.end());
+    for (auto tri : m.triangles) all.triangles.push_back({tri[0] + base, tri[1] + base, tri[2] + base});
+  };
+  for (const PlaneCollider& p : model.planes)
+    if (p.normal.norm() > 0.0) add(plane_quad(p, around, half));
+  const Vec3 up = up_direction(model);
+  for (const SphereCollider& s : model.spheres)
+    add(sphere_mesh(sphere_center(model, s, t), s.radius, s.side == SphereSide::Bowl, up));
+  return all;
+}
+
+template <size_t K>
+std::array<int, K> sorted(std::array<int, K> a) {
+  std::sort(a.begin(), a.end());
+  return a;
+}
+
+// The cells of one topology and which constraints sit on each.
+template <size_t K>
+struct Cells {
+  std::vector<std::array<int, K>> cells;
+  std::map<std::array<int, K>, int> index;  // sorted particles -> cell
+  std::vector<std::vector<int>> constraints;  // per cell
+  void add(const std::array<int, K>& c) {
+    if (index.emplace(sorted(c), static_cast<int>(cells.size())).second) cells.push_back(c);
+  }
+  void attach(const std::array<int, K>& particles, int constraint) {
+    auto it = index.find(sorted(particles));
+    if (it == index.end()) return;
+    if (constraints.size() < cells.size()) constraints.resize(cells.size());
+    constraints[static_cast<size_t>(it->second)].push_back(constraint);
+  }
+};
+
+void write_dataset(H5::H5File& f, const std::string& name, const std::vector<hsize_t>& dims,
+                   const double* data) {
+  H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
+  H5::DataSet ds = f.createDataSet(name, H5::PredType::IEEE_F64LE, space);
+  hsize_t n = 1;
+  for (hsize_t d : dims) n *= d;
+  if (n > 0) ds.write(data, H5::PredType::NATIVE_DOUBLE);
+}
+
+void write_ints(H5::H5File& f, const std::string& name, const std::vector<hsize_t>& dims, const int* data) {
+  H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
+  H5::DataSet ds = f.createDataSet(name, H5::PredType::STD_I32LE, space);
+  hsize_t n = 1;
+  for (hsize_t d : dims) n *= d;
+  if (n > 0) ds.write(data, H5::PredType::NATIVE_INT);
+}
+
+std::string dims_text(const std::vector<hsize_t>& d) {
+  std::string s;
+  for (hsize_t x : d) s += (s.empty() ? "" : " ") + std::to_string(x);
+  return s;
+}
+
+// A DataItem reading frame f of a (F, rest...) dataset.
+std::string frame_item(const std::string& file_and_path, hsize_t f, hsize_t frames,
+                       const std::vector<hsize_t>& rest) {
+  std::vector<hsize_t> full = {frames}, one = {1};
+  full.insert(full.end(), rest.begin(), rest.end());
+  one.insert(one.end(), rest.begin(), rest.end());
+  const size_t rank = full.size();
+  std::string start = std::to_string(f), stride = "1", count = "1";
+  for (size_t k = 1; k < rank; ++k) {
+    start += " 0";
+    stride += " 1";
+    count += " " + std::to_string(full[k]);
+  }
+  return fmt::format(
+      "<DataItem ItemType=\"HyperSlab\" Dimensions=\"{}\" Type=\"HyperSlab\">"
+      "<DataItem Dimensions=\"3 {}\" Format=\"XML\">{} {} {}</DataItem>"
+      "<DataItem Dimensions=\"{}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}</DataItem>"
+      "</DataItem>",
+      dims_text(rest), rank, start, stride, count, dims_text(full), file_and_path);
+}
+
+std::string whole_item(const std::string& file_and_path, const std::vector<hsize_t>& dims, bool ints = false) {
+  return fmt::format("<DataItem Dimensions=\"{}\" NumberType=\"{}\" Precision=\"{}\" Format=\"HDF\">{}</DataItem>",
+                     dims_text(dims), ints ? "Int" : "Float", ints ? 4 : 8, file_and_path);
+}
+
+bool is_our_export(const fs::path& p) {
+  std::ifstream in(p);
+  std::string line;
+  for (int k = 0; k < 3 && std::getline(in, line); ++k)
+    if (line.find(kMarker) != std::string::npos) return true;
+  return false;
+}
+
+bool is_our_data(const fs::path& p) {
+  try {
+    H5::H5File f(p.string(), H5F_ACC_RDONLY);
+    return f.attrExists("pbdbench_viz");
+  } catch (const H5::Exception&) {
+    return false;
+  }
+}
+
+void check_replace(const fs::path& p, bool (*ours)(const fs::path&)) {
+  std::error_code ec;
+  const fs::file_status st = fs::symlink_status(p, ec);
+  if (ec || !fs::exists(st)) return;
+  if (!fs::is_regular_file(st) || !ours(p))
+    throw OutputRefused(p.string() + " exists and is not an earlier pbdbench export: nothing was written");
+}
+
+}  // namespace
+
+fs::path default_xdmf_path(const fs::path& run_file) {
+  fs::path p = run_file;
+  p.replace_extension(".xdmf");
+  return p;
+}
+
+XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::path& xdmf) {
+  H5::Exception::dontPrint();
+  XdmfSummary out;
+  out.xdmf = xdmf;
+  out.data = xdmf;
+  out.data.replace_extension(".viz.h5");
+  check_replace(xdmf, is_our_export);
+  check_replace(out.data, is_our_data);
+
+  // The run's frames.
+  const int n = model.particle_count();
+  std::vector<double> times;
+  Points all;  // (F * n) x 3
+  bool velocities = false;
+  try {
+    H5::H5File f(run_file.string(), H5F_ACC_RDONLY);
+    if (!f.nameExists("/frames/time") || !f.nameExists("/frames/positions")) fail(run_file, "has no frames");
+    H5::DataSet t = f.openDataSet("/frames/time");
+    hsize_t nf = 0;
+    t.getSpace().getSimpleExtentDims(&nf);
+    times.resize(nf);
+    if (nf > 0) t.read(times.data(), H5::PredType::NATIVE_DOUBLE);
+    H5::DataSet x = f.openDataSet("/frames/positions");
+    hsize_t dims[3] = {0, 0, 0};
+    x.getSpace().getSimpleExtentDims(dims);
+    if (dims[0] != nf || static_cast<int>(dims[1]) != n)
+      fail(run_file, fmt::format("frames of {} particles, the scene has {}: not this scene's run file", dims[1], n));
+    all.resize(static_cast<Eigen::Index>(nf) * n, 3);
+    if (nf > 0 && n > 0) x.read(all.data(), H5::PredType::NATIVE_DOUBLE);
+    velocities = f.nameExists("/frames/velocities");
+  } catch (const H5::Exception& e) {
+    fail(run_file, "cannot read the frames: " + e.getDetailMsg());
+  }
+  const hsize_t F = times.size();
+  out.frames = static_cast<long>(F);
+
+  // Topology and the constraints on each cell.
+  Cells<2> edges;
+  Cells<3> tris;
+  Cells<4> tets;
+  for (const auto& e : model.edges) edges.add(e);
+  for (const Constraint& c : model.constraints)
+    if (c.kind == ConstraintKind::Distance) edges.add({c.particles[0], c.particles[1]});
+  for (const auto& t : model.triangles) tris.add(t);
+  for (const auto& t : model.tets) tets.add(t);
+  edges.constraints.resize(edges.cells.size());
+  tris.constraints.resize(tris.cells.size());
+  tets.constraints.resize(tets.cells.size());
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
+    const Constraint& c = model.constraints[j];
+    const int id = static_cast<int>(j);
+    std::array<int, 4> p = c.particles;
+    int count = arity(c.kind);
+    if (is_fem_kind(c.kind) && c.element >= 0 && c.element < static_cast<int>(model.elements.size())) {
+      const FemElement& e = model.elements[static_cast<size_t>(c.element)];
+      count = e.vertices;
+      for (int k = 0; k < 4; ++k) p[static_cast<size_t>(k)] = k < count ? e.particles[static_cast<size_t>(k)] : -1;
+    }
+    if (c.kind == ConstraintKind::Distance) edges.attach({p[0], p[1]}, id);
+    else if (count == 4 && c.kind != ConstraintKind::Bending) tets.attach(p, id);
+    else if (count == 3) tris.attach({p[0], p[1], p[2]}, id);
+  }
+  out.edges = static_cast<long>(edges.cells.size());
+  out.triangles = static_cast<long>(tris.cells.size());
+  out.tets = static_cast<long>(tets.cells.size());
+
+  // Fields.
+  const hsize_t N = static_cast<hsize_t>(n);
+  std::vector<double> displacement(F * N * 3), inv_mass(model.inv_mass), pinned(N);
+  for (int i = 0; i < n; ++i) pinned[static_cast<size_t>(i)] = model.inv_mass[static_cast<size_t>(i)] == 0.0 ? 1.0 : 0.0;
+  const size_t E = edges.cells.size(), T = tris.cells.size(), K = tets.cells.size();
+  std::vector<double> strain(F * E), edge_err(F * E), area(F * T), tri_err(F * T), volume(F * K), tet_err(F * K);
+  auto tri_area = [](const Vec3& a, const Vec3& b, const Vec3& c) { return 0.5 * (b - a).cross(c - a).norm(); };
+  for (hsize_t f = 0; f < F; ++f) {
+    const Points x = all.middleRows(static_cast<Eigen::Index>(f) * n, n);
+    for (int i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k)
+        displacement[(f * N + static_cast<hsize_t>(i)) * 3 + static_cast<hsize_t>(k)] = x(i, k) - model.rest_positions(i, k);
+    auto worst = [&](const std::vector<int>& cs) {
+      if (cs.empty()) return kNaN;
+      double w = 0.0;
+      for (int j : cs) {
+        const double e = constraint_error(model, model.constraints[static_cast<size_t>(j)], x);
+        if (std::isnan(e)) return kNaN;
+        w = std::max(w, e);
+      }
+      return w;
+    };
+    const Points& X = model.rest_positions;
+    for (size_t e = 0; e < E; ++e) {
+      const auto [a, b] = edges.cells[e];
+      const double l0 = (X.row(a) - X.row(b)).norm();
+      strain[f * E + e] = l0 > 0.0 ? (x.row(a) - x.row(b)).norm() / l0 - 1.0 : kNaN;
+      edge_err[f * E + e] = worst(edges.constraints[e]);
+    }
+    for (size_t t = 0; t < T; ++t) {
+      const auto [a, b, c] = tris.cells[t];
+      const double a0 = tri_area(X.row(a), X.row(b), X.row(c));
+      area[f * T + t] = a0 > 0.0 ? tri_area(x.row(a), x.row(b), x.row(c)) / a0 - 1.0 : kNaN;
+      tri_err[f * T + t] = worst(tris.constraints[t]);
+    }
+    for (size_t t = 0; t < K; ++t) {
+      const auto [a, b, c, d] = tets.cells[t];
+      const double v0 = tet_signed_volume(X.row(a), X.row(b), X.row(c), X.row(d));
+      volume[f * K + t] = v0 != 0.0 ? tet_signed_volume(x.row(a), x.row(b), x.row(c), x.row(d)) / v0 - 1.0 : kNaN;
+      tet_err[f * K + t] = worst(tets.constraints[t]);
+    }
+  }
+
+  // Colliders: planes as quads around the body's rest centroid, 2 x its extent (at least 1 m).
+  Vec3 centroid = Vec3::Zero();
+  double extent = 0.0;
+  if (n > 0) {
+    centroid = model.rest_positions.colwise().mean().transpose();
+    for (int i = 0; i < n; ++i) extent = std::max(extent, (Vec3(model.rest_positions.row(i)) - centroid).norm());
+  }
+  const double half = std::max(2.0 * extent, 1.0);
+  bool moving = false;
+  for (const SphereCollider& s : model.spheres) moving = moving || s.motion >= 0;
+  const hsize_t collider_frames = moving ? F : (F > 0 ? 1 : 0);
+  std::vector<double> collider_points;
+  std::vector<int> collider_tris;
+  hsize_t CP = 0, CT = 0;
+  for (hsize_t f = 0; f < collider_frames; ++f) {
+    const Mesh m = collider_mesh(model, moving ? times[f] : 0.0, centroid, half);
+    CP = m.points.size();
+    CT = m.triangles.size();
+    for (const Vec3& p : m.points) collider_points.insert(collider_points.end(), {p.x(), p.y(), p.z()});
+    if (f == 0)
+      for (const auto& t : m.triangles) collider_tris.insert(collider_tris.end(), t.begin(), t.end());
+  }
+  out.collider_points = static_cast<long>(CP);
+
+  // The data file.
+  const std::string tmp = out.data.string() + ".tmp";
+  try {
+    H5::H5File f(tmp, H5F_ACC_TRUNC);
+    {
+      const H5::StrType st(H5::PredType::C_S1, H5T_VARIABLE);
+      H5::Attribute a = f.createAttribute("pbdbench_viz", st, H5::DataSpace(H5S_SCALAR));
+      a.write(st, run_file.filename().string());
+    }
+    write_dataset(f, "displacement", {F, N, 3}, displacement.data());
+    write_dataset(f, "inv_mass", {N}, inv_mass.data());
+    write_dataset(f, "pinned", {N}, pinned.data());
+    std::vector<int> flat;
+    for (auto& e : edges.cells) flat.insert(flat.end(), e.begin(), e.end());
+    write_ints(f, "edges", {E, 2}, flat.data());
+    flat.clear();
+    for (auto& t : tris.cells) flat.insert(flat.end(), t.begin(), t.end());
+    write_ints(f, "triangles", {T, 3}, flat.data());
+    flat.clear();
+    for (auto& t : tets.cells) flat.insert(flat.end(), t.begin(), t.end());
+    write_ints(f, "tets", {K, 4}, flat.data());
+    write_dataset(f, "edge_strain", {F, E}, strain.data());
+    write_dataset(f, "edge_constraint_error", {F, E}, edge_err.data());
+    write_dataset(f, "triangle_area_change", {F, T}, area.data());
+    write_dataset(f, "triangle_constraint_error", {F, T}, tri_err.data());
+    write_dataset(f, "tet_volume_change", {F, K}, volume.data());
+    write_dataset(f, "tet_constraint_error", {F, K}, tet_err.data());
+    write_dataset(f, "collider_points", {collider_frames, CP, 3}, collider_points.data());
+    write_ints(f, "collider_triangles", {CT, 3}, collider_tris.data());
+  } catch (const H5::Exception& e) {
+    fail(out.data, "cannot write: " + e.getDetailMsg());
+  }
+  fs::rename(tmp, out.data);
+
+  // The XDMF.
+  const std::string run = run_file.filename().string();
+  const std::string data = out.data.filename().string();
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" ?>\n" << kMarker << run << " -->\n"
+    << "<Xdmf Version=\"2.0\">\n<Domain>\n"
+    << "<Grid Name=\"run\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (hsize_t f = 0; f < F; ++f) {
+    x << fmt::format("<Grid Name=\"frame {}\" GridType=\"Collection\" CollectionType=\"Spatial\">\n<Time Value=\"{:.17g}\"/>\n", f, times[f]);
+    auto body = [&](const char* name, const char* topo, const char* extra, hsize_t cells, int per, const char* conn,
+                    const std::vector<std::pair<const char*, const char*>>& cell_fields) {
+      if (cells == 0) return;
+      x << fmt::format("<Grid Name=\"{}\" GridType=\"Uniform\">\n", name);
+      x << fmt::format("<Topology TopologyType=\"{}\" NumberOfElements=\"{}\"{}>{}</Topology>\n", topo, cells, extra,
+                       whole_item(data + ":/" + conn, {cells, static_cast<hsize_t>(per)}, true));
+      x << "<Geometry GeometryType=\"XYZ\">" << frame_item(run + ":/frames/positions", f, F, {N, 3}) << "</Geometry>\n";
+      if (velocities)
+        x << "<Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">"
+          << frame_item(run + ":/frames/velocities", f, F, {N, 3}) << "</Attribute>\n";
+      x << "<Attribute Name=\"displacement\" AttributeType=\"Vector\" Center=\"Node\">"
+        << frame_item(data + ":/displacement", f, F, {N, 3}) << "</Attribute>\n";
+      x << "<Attribute Name=\"inv_mass\" AttributeType=\"Scalar\" Center=\"Node\">" << whole_item(data + ":/inv_mass", {N})
+        << "</Attribute>\n";
+      x << "<Attribute Name=\"pinned\" AttributeType=\"Scalar\" Center=\"Node\">" << whole_item(data + ":/pinned", {N})
+        << "</Attribute>\n";
+      for (const auto& [field, path] : cell_fields)
+        x << fmt::format("<Attribute Name=\"{}\" AttributeType=\"Scalar\" Center=\"Cell\">", field)
+          << frame_item(data + ":/" + path, f, F, {cells}) << "</Attribute>\n";
+      x << "</Grid>\n";
+    };
+    body("tets", "Tetrahedron", "", K, 4, "tets", {{"volume_change", "tet_volume_change"}, {"constraint_error", "tet_constraint_error"}});
+    body("triangles", "Triangle", "", T, 3, "triangles",
+         {{"area_change", "triangle_area_change"}, {"constraint_error", "triangle_constraint_error"}});
+    body("edges", "Polyline", " NodesPerElement=\"2\"", E, 2, "edges",
+         {{"strain", "edge_strain"}, {"constraint_error", "edge_constraint_error"}});
+    if (CP > 0 && CT > 0) {
+      x << "<Grid Name=\"colliders\" GridType=\"Uniform\">\n";
+      x << fmt::format("<Topology TopologyType=\"Triangle\" NumberOfElements=\"{}\">{}</Topology>\n", CT,
+                       whole_item(data + ":/collider_triangles", {CT, 3}, true));
+      x << "<Geometry GeometryType=\"XYZ\">" << frame_item(data + ":/collider_points", moving ? f : 0, collider_frames, {CP, 3})
+        << "</Geometry>\n</Grid>\n";
+    }
+    x << "</Grid>\n";
+  }
+  x << "</Grid>\n</Domain>\n</Xdmf>\n";
+  {
+    const std::string tmpx = xdmf.string() + ".tmp";
+    std::ofstream o(tmpx);
+    o << x.str();
+    o.close();
+    if (!o) fail(xdmf, "cannot write");
+    fs::rename(tmpx, xdmf);
+  }
+  return out;
+}
+
+}  // namespace pbdbench

@@ -1,0 +1,249 @@
+#!/usr/bin/python3
+"""Animates run files side by side: the motion, the colliders, elements coloured by a field.
+
+    animate.py RUN.h5 [RUN2.h5 ...] -o OUT.mp4|OUT.gif [--field constraint_error] [--view xy]
+               [--fps N] [--pbdbench PATH]
+
+Each run gets a panel, labelled with the configuration keys whose values differ between the runs
+(solver name, iterations, ...), its status and its warnings; the simulated time is in the title.
+The panels share their axes: the bounds of the runs that did not explode (an exploded run's
+particles fly off the panel rather than shrink the others).
+
+Elements are coloured by a per-element field of the run's ParaView export (RUN.viz.h5,
+runfile/xdmf.hpp): "constraint_error" (the default), "change" (edge strain, triangle area
+change, tet volume change), or "none". A run without its export gets one from
+`pbdbench export` (--pbdbench, $PBDBENCH_BIN, or pbdbench on the PATH). Tets are drawn by their
+faces, triangles as faces, edges (chains, springs, distance constraints) as lines; planes,
+spheres and bowls in grey, moving with their motion.
+
+--view: the plane to project on, "xy", "xz" or "zy" (default: the one holding gravity and the
+model's widest horizontal axis). Frames follow the first run's frame times; the others show
+their frame at or before that time. --fps defaults to real time (the frame spacing), at most 60;
+when the frames are sparser than 1/30 s the script says how to ask for more
+(--set output.frame_every=1).
+
+MP4 needs ffmpeg (Debian's, installed by scripts/install_deps.sh); GIF uses Pillow.
+"""
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib import animation  # noqa: E402
+from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runfile  # noqa: E402
+
+AXES = {"x": 0, "y": 1, "z": 2}
+FIELDS = {
+    "constraint_error": ("edge_constraint_error", "triangle_constraint_error", "tet_constraint_error"),
+    "change": ("edge_strain", "triangle_area_change", "tet_volume_change"),
+}
+
+
+def find_pbdbench(given):
+    for candidate in (given, os.environ.get("PBDBENCH_BIN"), shutil.which("pbdbench"),
+                      os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build", "pbdbench")):
+        if candidate and os.path.isfile(candidate) and os.access(candidate, os.X_OK):
+            return candidate
+    return None
+
+
+def viz_of(path, pbdbench):
+    """The run's export (RUN.viz.h5), made with `pbdbench export` when missing or older."""
+    viz = os.path.splitext(path)[0] + ".viz.h5"
+    if not os.path.isfile(viz) or os.path.getmtime(viz) < os.path.getmtime(path):
+        exe = find_pbdbench(pbdbench)
+        if exe is None:
+            raise SystemExit(f"animate.py: {viz} is missing and no pbdbench was found to export it "
+                             "(--pbdbench PATH or $PBDBENCH_BIN)")
+        p = subprocess.run([exe, "export", path], capture_output=True, text=True)
+        if p.returncode != 0:
+            raise SystemExit(f"animate.py: pbdbench export {path} failed:\n{p.stderr}")
+    return runfile.load_viz(viz)
+
+
+def default_view(run):
+    g = np.asarray(run.model.get("gravity", [0.0, -9.81, 0.0]), dtype=float)
+    up = int(np.argmax(np.abs(g))) if np.any(g) else 1
+    rest = np.asarray(run.model["rest_positions"], dtype=float)
+    spans = rest.max(axis=0) - rest.min(axis=0) if len(rest) else np.ones(3)
+    horizontal = max((k for k in range(3) if k != up), key=lambda k: spans[k])
+    return horizontal, up
+
+
+def frame_at(times, t):
+    """The index of the last frame at or before t."""
+    k = int(np.searchsorted(times, t + 1e-12, side="right")) - 1
+    return max(0, min(k, len(times) - 1))
+
+
+def tet_faces(tets):
+    return np.concatenate([tets[:, [0, 1, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 3]], tets[:, [1, 2, 3]]])
+
+
+class Panel:
+    def __init__(self, ax, run, viz, view, field, norm, cmap, label):
+        self.ax, self.run, self.viz, self.view = ax, run, viz, view
+        self.field, self.norm, self.cmap = field, norm, cmap
+        self.times = run.frame_time
+        ax.set_title(label, fontsize=8)
+        ax.set_aspect("equal")
+        i, j = view
+        self.colliders = None
+        tris = viz.get("collider_triangles")
+        if tris is not None and len(tris):
+            self.colliders = PolyCollection([], facecolor="0.75", edgecolor="0.6", linewidth=0.2, alpha=0.5, zorder=1)
+            ax.add_collection(self.colliders)
+        self.tets = np.asarray(viz.get("tets", np.zeros((0, 4), int)))
+        self.tris = np.asarray(viz.get("triangles", np.zeros((0, 3), int)))
+        self.edges = np.asarray(viz.get("edges", np.zeros((0, 2), int)))
+        self.faces = PolyCollection([], cmap=cmap, norm=norm, edgecolor="k", linewidth=0.1, zorder=2)
+        ax.add_collection(self.faces)
+        self.lines = LineCollection([], cmap=cmap, norm=norm, linewidth=1.5, zorder=3)
+        ax.add_collection(self.lines)
+        self.points = ax.plot([], [], ".", color="k", markersize=2, zorder=4)[0]
+        self.pinned = ax.plot([], [], "s", color="tab:red", markersize=3, zorder=5)[0]
+        self.pinned_mask = np.asarray(viz.get("pinned", []), dtype=float) > 0
+        del i, j
+
+    def cell_values(self, kind, f, n):
+        if self.field is None:
+            return np.zeros(n)
+        name = dict(zip(("edge", "triangle", "tet"), FIELDS[self.field]))[kind]
+        v = self.viz.get(name)
+        return np.asarray(v[f], dtype=float) if v is not None and len(v) > f else np.full(n, np.nan)
+
+    def draw(self, t):
+        f = frame_at(self.times, t)
+        x = self.run.frames[f]
+        i, j = self.view
+        p = x[:, [i, j]]
+        polys, values = [], []
+        if len(self.tets):
+            faces = tet_faces(self.tets)
+            polys.append(p[faces])
+            values.append(np.tile(self.cell_values("tet", f, len(self.tets)), 4))
+        elif len(self.tris):
+            polys.append(p[self.tris])
+            values.append(self.cell_values("triangle", f, len(self.tris)))
+        if polys:
+            self.faces.set_verts(list(np.concatenate(polys)))
+            self.faces.set_array(np.ma.masked_invalid(np.concatenate(values)))
+        if len(self.edges) and not len(self.tris) and not len(self.tets):
+            self.lines.set_segments(list(p[self.edges]))
+            self.lines.set_array(np.ma.masked_invalid(self.cell_values("edge", f, len(self.edges))))
+        self.points.set_data(p[:, 0], p[:, 1])
+        if self.pinned_mask.size == len(p):
+            self.pinned.set_data(p[self.pinned_mask, 0], p[self.pinned_mask, 1])
+        if self.colliders is not None:
+            cp = self.viz["collider_points"]
+            c = cp[min(f, len(cp) - 1)] if len(cp) > 1 else cp[0]
+            self.colliders.set_verts(list(c[:, [i, j]][self.viz["collider_triangles"]]))
+
+
+def bounds(runs, view):
+    """The axes' bounds: every frame of the runs that did not explode (all runs if each did)."""
+    calm = [r for r in runs if not r.exploded] or runs
+    pts = np.concatenate([r.frames[:, :, list(view)].reshape(-1, 2) for r in calm])
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.1 * max(float(np.max(hi - lo)), 1e-3)
+    return lo - pad, hi + pad
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("runs", nargs="+", help="run files (HDF5)")
+    ap.add_argument("-o", "--out", required=True, help="OUT.mp4 (ffmpeg) or OUT.gif (Pillow)")
+    ap.add_argument("--field", default="constraint_error", choices=["constraint_error", "change", "none"])
+    ap.add_argument("--view", choices=["xy", "xz", "zy"], help="the plane to project on")
+    ap.add_argument("--fps", type=float, help="frames a second (default: real time, at most 60)")
+    ap.add_argument("--pbdbench", help="the pbdbench executable, to export runs that have no RUN.viz.h5")
+    ap.add_argument("--max-frames", type=int, default=0, help="draw at most this many frames (evenly spaced)")
+    args = ap.parse_args(argv)
+
+    ext = os.path.splitext(args.out)[1].lower()
+    if ext not in (".mp4", ".gif"):
+        ap.error(f"--out {args.out}: the name must end in .mp4 or .gif")
+    if ext == ".mp4" and not animation.FFMpegWriter.isAvailable():
+        raise SystemExit("animate.py: MP4 needs ffmpeg (scripts/install_deps.sh installs it); or write a .gif")
+    try:
+        runs = [runfile.load(p) for p in args.runs]
+    except runfile.RunFileError as e:
+        raise SystemExit(f"animate.py: {e}")
+    for r in runs:
+        if r.frames is None or r.frame_time is None or len(r.frame_time) == 0:
+            raise SystemExit(f"animate.py: {r.path} has no frames")
+    vizes = [viz_of(p, args.pbdbench) for p in args.runs]
+    view = tuple(AXES[c] for c in args.view) if args.view else default_view(runs[0])
+
+    times = runs[0].frame_time
+    if args.max_frames and len(times) > args.max_frames:
+        times = times[np.linspace(0, len(times) - 1, args.max_frames).round().astype(int)]
+    spacing = float(np.median(np.diff(runs[0].frame_time))) if len(runs[0].frame_time) > 1 else 1 / 30
+    fps = args.fps or min(60.0, max(1.0, 1.0 / spacing if spacing > 0 else 30.0))
+    if spacing > 1 / 30 + 1e-9:
+        print(f"animate.py: frames are {spacing:.3g} s apart; for a smoother animation rerun with "
+              "--set output.frame_every=1 (a frame every step)", file=sys.stderr)
+
+    keys = [k for k in runfile.differing_keys(runs) if not k.startswith("output.")]
+    field = None if args.field == "none" else args.field
+    values = []
+    for v in vizes:
+        for name in FIELDS.get(field, ()):
+            a = v.get(name)
+            if a is not None and a.size:
+                values.append(np.asarray(a, dtype=float).ravel())
+    values = np.concatenate(values) if values else np.zeros(1)
+    values = values[np.isfinite(values)]
+    vmax = float(np.percentile(np.abs(values), 99)) if values.size else 1.0
+    vmax = vmax if vmax > 0 else 1.0
+    if field == "change":
+        norm, cmap = matplotlib.colors.Normalize(-vmax, vmax), "coolwarm"
+    else:
+        norm, cmap = matplotlib.colors.Normalize(0.0, vmax), "viridis"
+
+    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs) + 0.8, 4.6), squeeze=False)
+    lo, hi = bounds(runs, view)
+    panels = []
+    for ax, run, viz in zip(axes[0], runs, vizes):
+        text = runfile.label(run, keys) if keys else f"{run.attrs.get('scenario', run.name)} [{run.attrs.get('solver', '?')}]"
+        status = run.status if not run.warnings else f"{run.status}, {len(run.warnings)} warning(s)"
+        codes = sorted({w.split(" ")[0] for w in run.warnings})
+        label = f"{text}\n{status}" + (f": {', '.join(codes)}" if codes else "")
+        panels.append(Panel(ax, run, viz, view, field, norm, cmap, label))
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_xlabel("xyz"[view[0]] + " (m)")
+        ax.set_ylabel("xyz"[view[1]] + " (m)")
+    if field:
+        sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
+        fig.colorbar(sm, ax=list(axes[0]), shrink=0.8,
+                     label=field.replace("_", " ") + (" (strain / area / volume change)" if field == "change" else ""))
+    scenario = runs[0].attrs.get("scenario", "")
+    title = fig.suptitle("")
+
+    def update(k):
+        t = float(times[k])
+        for p in panels:
+            p.draw(t)
+        title.set_text(f"{scenario}   t = {t:.3f} s")
+        return []
+
+    anim = animation.FuncAnimation(fig, update, frames=len(times), blit=False)
+    writer = animation.FFMpegWriter(fps=fps) if ext == ".mp4" else animation.PillowWriter(fps=fps)
+    anim.save(args.out, writer=writer, dpi=90)
+    print(f"animate.py: {args.out} ({len(times)} frames at {fps:g} fps, {len(runs)} run(s), colour: {args.field})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

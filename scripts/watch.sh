@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# One command to watch a scene: runs it (with its own solver, or with each solver named) and
+# animates the runs side by side (scripts/animate.py), with a summary that names any failure.
+#
+#   scripts/watch.sh SCENARIO [SOLVER ...] [-- --set KEY=VALUE ...]
+#   scripts/watch.sh --failures          every scene of scenarios/failures/, one video each
+#
+# Output in ${PBDBENCH_WATCH_DIR:-results/watch}/<scene>/: the run files, their ParaView
+# files (RUN.xdmf: open in ParaView) and <scene>.mp4 (or .gif when ffmpeg is missing).
+# pbdbench is $PBDBENCH_BIN, or build/pbdbench, or the one on the PATH.
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+bin="${PBDBENCH_BIN:-}"
+[[ -z "$bin" && -x "$root/build/pbdbench" ]] && bin="$root/build/pbdbench"
+[[ -z "$bin" ]] && bin=$(command -v pbdbench || true)
+[[ -n "$bin" ]] || { echo "watch.sh: no pbdbench (build it with scripts/build.sh, or set PBDBENCH_BIN)" >&2; exit 2; }
+out_root="${PBDBENCH_WATCH_DIR:-results/watch}"
+ext=mp4
+command -v ffmpeg >/dev/null || ext=gif
+
+if [[ "${1:-}" == "--failures" ]]; then
+  status=0
+  for f in "$root"/scenarios/failures/*.toml; do
+    "$0" "$f" || status=1
+  done
+  exit $status
+fi
+[[ $# -ge 1 ]] || { sed -n 2,10p "$0" >&2; exit 2; }
+
+scenario=$1; shift
+solvers=(); extra=()
+while [[ $# -gt 0 ]]; do
+  if [[ "$1" == "--" ]]; then shift; extra=("$@"); break; fi
+  solvers+=("$1"); shift
+done
+name=$(basename "$scenario" .toml)
+dir="$out_root/$name"
+mkdir -p "$dir"
+runs=()
+if [[ ${#solvers[@]} -eq 0 ]]; then
+  "$bin" run "$scenario" --out "$dir/run.h5" --quiet "${extra[@]}" || true
+  runs+=("$dir/run.h5")
+else
+  for s in "${solvers[@]}"; do
+    "$bin" run "$scenario" --solver "$s" --out "$dir/$s.h5" --quiet "${extra[@]}" || true
+    runs+=("$dir/$s.h5")
+  done
+fi
+"$bin" summary "${runs[@]}"
+PBDBENCH_BIN="$bin" /usr/bin/python3 "$root/scripts/animate.py" "${runs[@]}" -o "$dir/$name.$ext"

@@ -1,0 +1,440 @@
+// The straight-line projection kernels of the compiled path (solvers/compiled_projection.hpp):
+// one inline function per (rule, kind) that projects the items [begin, end) of a block of one
+// kind on positions P (kStride scalars a particle), W::kWidth items at a time in the lanes of a
+// pack W (core/simd.hpp; the items of a batch share no moving particle), the last pack partial.
+// No per-projection temporaries beyond registers, no calls, no branches on the kind. What each
+// computes is what the per-item kernels of solvers/kernels.hpp compute (the reference
+// implementation, compared with these in tests/solvers/test_compiled_projection.cpp), with the
+// inverse masses and the constant parts of the denominators precomputed at setup:
+//
+//   pbd, distance:  d = x1 - x0, f = (|d| - rest) / |d|, x0 += a0 f d, x1 -= a1 f d,
+//                   a_i = k w_i / (w0 + w1)                      (Mueller et al. 2007, sec. 3.3)
+//   pbd, other:     s = k C / sum_i w_i |grad_i C|^2, x_i -= s w_i grad_i C
+//   xpbd, distance: n = d / |d|, dlambda = (-C - alpha~ lambda - gamma n . (dx1 - dx0)) / D,
+//                   D = (1 + gamma)(w0 + w1) + alpha~ (its inverse precomputed per h),
+//                   lambda += dlambda, x0 -= w0 dlambda n, x1 += w1 dlambda n
+//   xpbd, other:    dlambda = (-C - alpha~ lambda - gamma sum_i grad_i C . dx_i)
+//                             / ((1 + gamma) sum_i w_i |grad_i C|^2 + alpha~)
+//                                                            (Macklin et al. 2016, eq. 26)
+// with dx_i = x_i - x_n,i the motion since the start of the substep. An item whose gradient is
+// undefined or whose denominator is not positive is skipped and counted. A particle with w = 0
+// is never written (the items that have one are in "anchored" batches, whose kernels test). A lane
+// computes the bits the one-by-one code computes: every operation is the same IEEE operation.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <type_traits>
+#include <vector>
+
+#include "core/constraint_kind.hpp"
+#include "core/constraint_stencils.hpp"
+#include "core/simd.hpp"
+
+namespace pbdbench {
+
+inline constexpr int kStride = 4;  // scalars per particle in a positions array: x, y, z, and a
+                                   // fourth never read (0), so that a particle is one 4-vector
+
+// Which projection the sweeps apply.
+enum class ProjectionRule : std::uint8_t {
+  Pbd,   // Mueller et al. 2007: stiffness k (k' with solver.pbd.stiffness_correction), no multipliers
+  Xpbd,  // Macklin et al. 2016, eq. 26: compliance, damping, multipliers
+};
+
+// The items of one constraint kind, struct of arrays (one array per field, indexed by the slot),
+// in the order the schedule visits them. Coefficients per item depend on the rule:
+//   pbd  distance: coef[0] = a0, coef[1] = a1        pbd  other: coef[0] = k
+//   xpbd distance: alpha~, gamma, 1/D                xpbd other: alpha~, gamma
+template <class T>
+struct KindBlock {
+  static constexpr int kCoefficients = 3;
+  ConstraintKind kind = ConstraintKind::Distance;
+  int arity = 0;
+  int count = 0;
+  std::array<std::vector<std::int32_t>, 4> particle;  // [i] (count): the i-th particle's index
+  std::array<std::vector<T>, 4> inv_mass;             // [i] (count) 1/kg
+  std::vector<T> rest;                                // (count) rest value, units of C
+  std::array<std::vector<T>, kCoefficients> coef;     // [c] (count), see above
+  std::array<std::vector<T>, 9> rest_inverse;         // [3 r + c] (count) FEM kinds: Dm^-1, 1/m
+  std::vector<T> lambda;                              // (count) xpbd: multiplier of the substep
+  std::vector<std::int32_t> item;                     // (count) the model constraint
+  std::vector<double> stiffness;                      // (count) pbd: k (or k'), as compiled
+  std::vector<double> compliance;                     // (count) xpbd: alpha
+  std::vector<double> damping;                        // (count) xpbd: beta
+  std::vector<double> rest_double;                    // (count) the rest values in double, and
+  std::array<std::vector<double>, 9> rest_inverse_double;  // Dm^-1: for the xpbd residuals
+};
+
+template <class T>
+inline V3<T> load3(const T* P, std::int32_t p) {
+  const T* q = P + static_cast<std::ptrdiff_t>(kStride) * p;
+  return {q[0], q[1], q[2]};
+}
+template <class T>
+inline void store3(T* P, std::int32_t p, const V3<T>& v) {
+  T* q = P + static_cast<std::ptrdiff_t>(kStride) * p;
+  q[0] = v.x;
+  q[1] = v.y;
+  q[2] = v.z;
+}
+
+// A block as the kernels read it: its arrays, no containers (the wide kernels of
+// solvers/projection_wide.hpp take only this).
+template <class T>
+struct BlockView {
+  const std::int32_t* particle[4] = {};
+  const T* inv_mass[4] = {};
+  const T* rest = nullptr;
+  const T* coef[KindBlock<T>::kCoefficients] = {};
+  const T* rest_inverse[9] = {};
+  T* lambda = nullptr;
+};
+template <class T>
+inline BlockView<T> view(KindBlock<T>& b) {
+  BlockView<T> v;
+  for (int i = 0; i < 4; ++i) {
+    v.particle[i] = b.particle[static_cast<size_t>(i)].data();
+    v.inv_mass[i] = b.inv_mass[static_cast<size_t>(i)].data();
+  }
+  v.rest = b.rest.data();
+  for (int c = 0; c < KindBlock<T>::kCoefficients; ++c) v.coef[c] = b.coef[static_cast<size_t>(c)].data();
+  for (int k = 0; k < 9; ++k) v.rest_inverse[k] = b.rest_inverse[static_cast<size_t>(k)].data();
+  v.lambda = b.lambda.data();
+  return v;
+}
+
+// A run of items of one kind and one kernel variant: [begin, end) of the kind's block.
+struct ChunkSpec {
+  ProjectionRule rule = ProjectionRule::Pbd;
+  ConstraintKind kind = ConstraintKind::Distance;
+  bool anchored = false;  // some item has a particle with w = 0: tested before each write
+  bool damped = false;    // xpbd: some item has damping != 0
+  bool jacobi = false;    // corrections into JacobiBuffers instead of the positions
+  int begin = 0, end = 0;
+};
+
+// Where a kernel's corrections go: straight into the positions (Gauss-Seidel orders), or, with
+// Jacobi, into buffers applied after the sweep (solvers/compiled_projection.cpp): the correction
+// of particle i of item s, component c, at dx[(3 i + c) count + s], the multiplier's change at
+// dlambda[s]. A skipped item writes zeros there.
+template <class T>
+struct JacobiBuffers {
+  T* dx = nullptr;       // (arity x 3 x count) m
+  T* dlambda = nullptr;  // (count) xpbd
+  int count = 0;         // items of the block
+};
+
+// ---------------------------------------------------------------------------------------------
+// Lanes: the items s .. s + n - 1 in the lanes of a pack W. A full pack has n = W::kWidth; the
+// last pack of a run may be partial (Partial): its lanes from n on repeat lane 0's item, so that
+// they read only what lane 0 reads (nothing another thread may be writing), and nothing is
+// written for them. Lane k of an array value is a[k]; of a position, the particle idx[k].
+
+#define PBDBENCH_INLINE_LAMBDA __attribute__((always_inline))
+
+template <class T, class W, bool Partial>
+struct Lanes {
+  static constexpr int kWidth = W::kWidth;
+  using L = W;
+  int n = kWidth;  // active lanes
+  PBDBENCH_INLINE int lane(int k) const { return Partial && k >= n ? 0 : k; }
+  PBDBENCH_INLINE int active() const { return Partial ? (1 << n) - 1 : (1 << kWidth) - 1; }
+  PBDBENCH_INLINE L value(const T* a) const {
+    L out;
+    if constexpr (Partial) {
+      for (int k = 0; k < kWidth; ++k) out.set(k, a[lane(k)]);
+    } else {
+      __builtin_memcpy(&out.v, a, sizeof out.v);
+    }
+    return out;
+  }
+  PBDBENCH_INLINE void put(T* a, const L& v) const {
+    if constexpr (Partial) {
+      for (int k = 0; k < n; ++k) a[k] = v[k];
+    } else {
+      __builtin_memcpy(a, &v.v, sizeof v.v);
+    }
+  }
+  // Particles are gathered one value at a time: moving each as one 4-vector and transposing with
+  // shuffles was measured slower (docs/performance.md).
+  PBDBENCH_INLINE V3<L> position(const T* P, const std::int32_t* idx) const {
+    V3<L> out;
+    for (int k = 0; k < kWidth; ++k) {
+      const T* q = P + static_cast<std::ptrdiff_t>(kStride) * idx[lane(k)];
+      out.x.set(k, q[0]);
+      out.y.set(k, q[1]);
+      out.z.set(k, q[2]);
+    }
+    return out;
+  }
+  PBDBENCH_INLINE void store(T* P, const std::int32_t* idx, const V3<L>& v, int lanes) const {
+    lanes &= active();
+    for (int k = 0; k < kWidth; ++k) {
+      if (!((lanes >> k) & 1)) continue;
+      T* q = P + static_cast<std::ptrdiff_t>(kStride) * idx[k];
+      q[0] = v.x[k];
+      q[1] = v.y[k];
+      q[2] = v.z[k];
+    }
+  }
+  // The lanes of a mask as bits, the inactive ones clear.
+  template <class M>
+  PBDBENCH_INLINE int bits(const M& m) const {
+    return lane_bits(m) & active();
+  }
+  // The active lanes whose bit is clear in `valid`.
+  PBDBENCH_INLINE int skipped(int valid) const {
+    int set = 0;
+    for (int k = 0; k < kWidth; ++k) set += (valid >> k) & 1;
+    return (Partial ? n : kWidth) - set;
+  }
+};
+
+// Runs body(s, lanes) over [begin, end): whole packs W of items, then one partial pack.
+template <class T, class W, class Body>
+inline long over_items(int begin, int end, Body&& body) {
+  long skipped = 0;
+  int s = begin;
+  for (; s + W::kWidth <= end; s += W::kWidth) skipped += body(s, Lanes<T, W, false>{});
+  if (s < end) {
+    Lanes<T, W, true> partial;
+    partial.n = end - s;
+    skipped += body(s, partial);
+  }
+  return skipped;
+}
+
+// The Jacobi correction of particle i of the items s.. (zero where not ok).
+template <class Ln, class M>
+PBDBENCH_INLINE void put_correction(const Ln& ln, const JacobiBuffers<LaneScalar<typename Ln::L>>& J,
+                                    int s, int i, const M& ok, const V3<typename Ln::L>& dx) {
+  using L = typename Ln::L;
+  using T = LaneScalar<L>;
+  const L zero(T(0));
+  T* base = J.dx + static_cast<std::ptrdiff_t>(3 * i) * J.count + s;
+  ln.put(base, lane_select(ok, dx.x, zero));
+  ln.put(base + J.count, lane_select(ok, dx.y, zero));
+  ln.put(base + 2 * static_cast<std::ptrdiff_t>(J.count), lane_select(ok, dx.z, zero));
+}
+
+// ---------------------------------------------------------------------------------------------
+// pbd
+
+template <class T, class W, bool Anchored, bool Jacobi>
+inline long pbd_distance(const BlockView<T>& b, int begin, int end, T* P, const JacobiBuffers<T>& J) {
+  return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
+    using Ln = decltype(ln);
+    using L = typename Ln::L;
+    const V3<L> x0 = ln.position(P, b.particle[0] + s), x1 = ln.position(P, b.particle[1] + s);
+    const V3<L> d = x1 - x0;
+    const L len = lane_sqrt(dot(d, d));
+    const auto ok = len > L(T(0));
+    const L f = (len - ln.value(b.rest + s)) / lane_select(ok, len, L(T(1)));
+    const L a0 = ln.value(b.coef[0] + s) * f;
+    const L a1 = ln.value(b.coef[1] + s) * f;
+    const int valid = ln.bits(ok);
+    if constexpr (Jacobi) {
+      put_correction(ln, J, s, 0, ok, a0 * d);
+      put_correction(ln, J, s, 1, ok, -(a1 * d));
+    } else {
+      int write0 = valid, write1 = valid;
+      if constexpr (Anchored) {
+        write0 &= ln.bits(ln.value(b.inv_mass[0] + s) != L(T(0)));
+        write1 &= ln.bits(ln.value(b.inv_mass[1] + s) != L(T(0)));
+      }
+      ln.store(P, b.particle[0] + s, x0 + a0 * d, write0);
+      ln.store(P, b.particle[1] + s, x1 - a1 * d, write1);
+    }
+    return ln.skipped(valid);
+  });
+}
+
+// Kinds of four particles: the stencil of core/constraint_stencils.hpp. `Kind` is a template
+// argument so that each kind's loop is straight-line code.
+template <ConstraintKind Kind, class T, class L, class Ln>
+PBDBENCH_INLINE StencilEval<L> eval4(const BlockView<T>& b, int s, const V3<L>* x, const Ln& ln) {
+  const L rest = ln.value(b.rest + s);
+  if constexpr (Kind == ConstraintKind::Volume) {
+    return volume_stencil(x[0], x[1], x[2], x[3], rest);
+  } else if constexpr (Kind == ConstraintKind::Bending) {
+    return bending_stencil(x[0], x[1], x[2], x[3], rest);
+  } else {
+    L dm[9];
+    for (int k = 0; k < 9; ++k) dm[k] = ln.value(b.rest_inverse[k] + s);
+    if constexpr (Kind == ConstraintKind::FemDeviatoric) return fem_deviatoric_stencil(x[0], x[1], x[2], x[3], dm, rest);
+    else return fem_hydrostatic_stencil(x[0], x[1], x[2], x[3], dm, rest);
+  }
+}
+
+template <class T, class W, ConstraintKind Kind, bool Jacobi>
+inline long pbd_four(const BlockView<T>& b, int begin, int end, T* P, const JacobiBuffers<T>& J) {
+  return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
+    using Ln = decltype(ln);
+    using L = typename Ln::L;
+    V3<L> x[4];
+    L ws[4];
+    for (int i = 0; i < 4; ++i) {
+      x[i] = ln.position(P, b.particle[i] + s);
+      ws[i] = ln.value(b.inv_mass[i] + s);
+    }
+    const StencilEval<L> e = eval4<Kind>(b, s, x, ln);
+    const L wsum = ws[0] * dot(e.grad[0], e.grad[0]) + ws[1] * dot(e.grad[1], e.grad[1]) +
+                   ws[2] * dot(e.grad[2], e.grad[2]) + ws[3] * dot(e.grad[3], e.grad[3]);
+    const auto ok = lane_and(e.valid, wsum > L(T(0)));
+    const L scale = ln.value(b.coef[0] + s) * e.C / lane_select(ok, wsum, L(T(1)));
+    const int valid = ln.bits(ok);
+    const L zero(T(0));
+    for (int i = 0; i < 4; ++i) {
+      const V3<L> dx = -((scale * ws[i]) * e.grad[static_cast<size_t>(i)]);
+      if constexpr (Jacobi) put_correction(ln, J, s, i, ok, dx);
+      else ln.store(P, b.particle[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
+    }
+    return ln.skipped(valid);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// xpbd
+
+template <class T, class W, bool Anchored, bool Damped, bool Jacobi>
+inline long xpbd_distance(const BlockView<T>& b, int begin, int end, T* P, const T* X0,
+                          const JacobiBuffers<T>& J) {
+  return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
+    using Ln = decltype(ln);
+    using L = typename Ln::L;
+    const V3<L> x0 = ln.position(P, b.particle[0] + s), x1 = ln.position(P, b.particle[1] + s);
+    const V3<L> d = x1 - x0;
+    const L len = lane_sqrt(dot(d, d));
+    const L inv_d = ln.value(b.coef[2] + s);  // 1/D, 0 when D <= 0
+    const L zero(T(0));
+    const auto ok = lane_and(len > zero, inv_d != zero);
+    const L inv_len = L(T(1)) / lane_select(ok, len, L(T(1)));
+    const L lam = ln.value(b.lambda + s);
+    L num = -(len - ln.value(b.rest + s)) - ln.value(b.coef[0] + s) * lam;
+    if constexpr (Damped) {
+      const V3<L> motion = (x1 - ln.position(X0, b.particle[1] + s)) - (x0 - ln.position(X0, b.particle[0] + s));
+      num = num - ln.value(b.coef[1] + s) * (dot(d, motion) * inv_len);
+    }
+    const L dlambda = lane_select(ok, num * inv_d, zero);
+    const L q = dlambda * inv_len;
+    const L w0 = ln.value(b.inv_mass[0] + s), w1 = ln.value(b.inv_mass[1] + s);
+    const L q0 = w0 * q, q1 = w1 * q;
+    const int valid = ln.bits(ok);
+    if constexpr (Jacobi) {
+      ln.put(J.dlambda + s, dlambda);
+      put_correction(ln, J, s, 0, ok, -(q0 * d));
+      put_correction(ln, J, s, 1, ok, q1 * d);
+    } else {
+      ln.put(b.lambda + s, lam + dlambda);
+      int write0 = valid, write1 = valid;
+      if constexpr (Anchored) {
+        write0 &= ln.bits(w0 != zero);
+        write1 &= ln.bits(w1 != zero);
+      }
+      ln.store(P, b.particle[0] + s, x0 - q0 * d, write0);
+      ln.store(P, b.particle[1] + s, x1 + q1 * d, write1);
+    }
+    return ln.skipped(valid);
+  });
+}
+
+template <class T, class W, ConstraintKind Kind, bool Damped, bool Jacobi>
+inline long xpbd_four(const BlockView<T>& b, int begin, int end, T* P, const T* X0,
+                      const JacobiBuffers<T>& J) {
+  return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
+    using Ln = decltype(ln);
+    using L = typename Ln::L;
+    V3<L> x[4];
+    L ws[4];
+    for (int i = 0; i < 4; ++i) {
+      x[i] = ln.position(P, b.particle[i] + s);
+      ws[i] = ln.value(b.inv_mass[i] + s);
+    }
+    const StencilEval<L> e = eval4<Kind>(b, s, x, ln);
+    const L alpha = ln.value(b.coef[0] + s), gamma = ln.value(b.coef[1] + s);
+    const L wsum = ws[0] * dot(e.grad[0], e.grad[0]) + ws[1] * dot(e.grad[1], e.grad[1]) +
+                   ws[2] * dot(e.grad[2], e.grad[2]) + ws[3] * dot(e.grad[3], e.grad[3]);
+    const L zero(T(0));
+    const L denom = (L(T(1)) + gamma) * wsum + alpha;
+    const auto ok = lane_and(e.valid, denom > zero);
+    const L lam = ln.value(b.lambda + s);
+    L num = -e.C - alpha * lam;
+    if constexpr (Damped) {
+      L rate = zero;
+      for (int i = 0; i < 4; ++i)
+        rate = rate + dot(e.grad[static_cast<size_t>(i)], x[i] - ln.position(X0, b.particle[i] + s));
+      num = num - gamma * rate;
+    }
+    const L dlambda = lane_select(ok, num / lane_select(ok, denom, L(T(1))), zero);
+    const int valid = ln.bits(ok);
+    if constexpr (Jacobi) ln.put(J.dlambda + s, dlambda);
+    else ln.put(b.lambda + s, lam + dlambda);
+    for (int i = 0; i < 4; ++i) {
+      const V3<L> dx = (ws[i] * dlambda) * e.grad[static_cast<size_t>(i)];
+      if constexpr (Jacobi) put_correction(ln, J, s, i, ok, dx);
+      else ln.store(P, b.particle[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
+    }
+    return ln.skipped(valid);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// One chunk through the kernel of its rule, kind and variant, in packs W. Returns the number of
+// skipped projections.
+template <class T, class W>
+inline long project_chunk(const ChunkSpec& c, const BlockView<T>& b, T* P, const T* X0,
+                          const JacobiBuffers<T>& J) {
+  const int lo = c.begin, hi = c.end;
+  if (c.rule == ProjectionRule::Pbd) {
+    switch (c.kind) {
+      case ConstraintKind::Distance:
+        if (c.jacobi) return pbd_distance<T, W, true, true>(b, lo, hi, P, J);
+        return c.anchored ? pbd_distance<T, W, true, false>(b, lo, hi, P, J)
+                          : pbd_distance<T, W, false, false>(b, lo, hi, P, J);
+      case ConstraintKind::Volume:
+        return c.jacobi ? pbd_four<T, W, ConstraintKind::Volume, true>(b, lo, hi, P, J)
+                        : pbd_four<T, W, ConstraintKind::Volume, false>(b, lo, hi, P, J);
+      case ConstraintKind::Bending:
+        return c.jacobi ? pbd_four<T, W, ConstraintKind::Bending, true>(b, lo, hi, P, J)
+                        : pbd_four<T, W, ConstraintKind::Bending, false>(b, lo, hi, P, J);
+      case ConstraintKind::FemDeviatoric:
+      case ConstraintKind::FemHydrostatic:
+      case ConstraintKind::FemStrainTriangle:
+      case ConstraintKind::FemStrainTet:
+        return 0;  // pbd refuses FEM (solvers/pbd.cpp)
+    }
+    return 0;
+  }
+  const auto four = [&](auto kind) -> long {
+    constexpr ConstraintKind K = decltype(kind)::value;
+    if (c.jacobi)
+      return c.damped ? xpbd_four<T, W, K, true, true>(b, lo, hi, P, X0, J)
+                      : xpbd_four<T, W, K, false, true>(b, lo, hi, P, X0, J);
+    return c.damped ? xpbd_four<T, W, K, true, false>(b, lo, hi, P, X0, J)
+                    : xpbd_four<T, W, K, false, false>(b, lo, hi, P, X0, J);
+  };
+  switch (c.kind) {
+    case ConstraintKind::Distance:
+      if (c.jacobi)
+        return c.damped ? xpbd_distance<T, W, true, true, true>(b, lo, hi, P, X0, J)
+                        : xpbd_distance<T, W, true, false, true>(b, lo, hi, P, X0, J);
+      if (c.damped)
+        return c.anchored ? xpbd_distance<T, W, true, true, false>(b, lo, hi, P, X0, J)
+                          : xpbd_distance<T, W, false, true, false>(b, lo, hi, P, X0, J);
+      return c.anchored ? xpbd_distance<T, W, true, false, false>(b, lo, hi, P, X0, J)
+                        : xpbd_distance<T, W, false, false, false>(b, lo, hi, P, X0, J);
+    case ConstraintKind::Volume: return four(std::integral_constant<ConstraintKind, ConstraintKind::Volume>{});
+    case ConstraintKind::Bending: return four(std::integral_constant<ConstraintKind, ConstraintKind::Bending>{});
+    case ConstraintKind::FemDeviatoric:
+      return four(std::integral_constant<ConstraintKind, ConstraintKind::FemDeviatoric>{});
+    case ConstraintKind::FemHydrostatic:
+      return four(std::integral_constant<ConstraintKind, ConstraintKind::FemHydrostatic>{});
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet:
+      return 0;  // vector constraints: never compiled (compile_projection refuses them)
+  }
+  return 0;
+}
+
+}  // namespace pbdbench

@@ -1,0 +1,119 @@
+// Tests of metrics/health.hpp: each warning is raised by a state that has the failure and not by
+// one just inside the threshold.
+#include "metrics/health.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+namespace pbdbench {
+namespace {
+
+Model one_particle(double radius) {
+  Model m;
+  m.rest_positions = Points(1, 3);
+  m.rest_positions.row(0) = Vec3(0, 1, 0);
+  m.inv_mass = {1.0};
+  m.radius = {radius};
+  m.gravity = Vec3(0, -10, 0);
+  return m;
+}
+
+std::vector<std::string> codes(const HealthMonitor& h) {
+  std::vector<std::string> out;
+  for (const RunWarning& w : h.warnings()) out.push_back(w.code);
+  return out;
+}
+
+TEST(Health, EnergyGainedWithoutSourceIsWarnedAboveTheThreshold) {
+  const Model m = one_particle(0.0);
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  // Energy scale: m g H = 1 * 10 * 1e-3 (one particle: extent 0, H = 1 mm) = 0.01 J.
+  HealthMonitor h(m, s, s0, 10, false);
+  s.v.row(0) = Vec3(0.1, 0, 0);  // +0.005 J: above 0.1 x 0.01 J
+  s.time = 0.1;
+  h.observe(1, s, measure(m, s, b));
+  ASSERT_EQ(codes(h), std::vector<std::string>{"energy_gain"});
+  EXPECT_EQ(h.warnings()[0].step, 1);
+  // The same gain in a scene with an energy source is not warned.
+  HealthMonitor sourced(m, rest_state(m), s0, 10, true);
+  sourced.observe(1, s, measure(m, s, b));
+  EXPECT_TRUE(sourced.warnings().empty());
+  // A gain below the threshold: 0.5 * 0.04^2 = 8e-4 J < 1e-3 J.
+  HealthMonitor small(m, rest_state(m), s0, 10, false);
+  s.v.row(0) = Vec3(0.04, 0, 0);
+  small.observe(1, s, measure(m, s, b));
+  EXPECT_TRUE(small.warnings().empty());
+}
+
+TEST(Health, VolumeLostBeyondTheThresholdIsWarned) {
+  Model m;
+  m.rest_positions = Points(4, 3);
+  m.rest_positions << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  m.inv_mass = {1, 1, 1, 1};
+  m.radius = {0, 0, 0, 0};
+  m.gravity = Vec3::Zero();
+  m.tets = {{0, 1, 2, 3}};
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  HealthMonitor h(m, s, measure(m, s, b), 10, false);
+  s.x(3, 2) = 0.95;  // -5 %: inside
+  h.observe(1, s, measure(m, s, b));
+  EXPECT_TRUE(h.warnings().empty());
+  s.x(3, 2) = 0.7;  // -30 %
+  h.observe(2, s, measure(m, s, b));
+  ASSERT_EQ(codes(h), std::vector<std::string>{"volume"});
+  EXPECT_EQ(h.warnings()[0].step, 2);
+  EXPECT_NE(h.warnings()[0].message.find("lost 30 %"), std::string::npos) << h.warnings()[0].message;
+}
+
+TEST(Health, ErrorGrowingInEveryQuarterIsWarnedAndABoundedOneIsNot) {
+  Model m = one_particle(0.0);
+  m.gravity = Vec3::Zero();
+  const State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  HealthMonitor growing(m, s, s0, 8, false), bounded(m, s, s0, 8, false);
+  for (long k = 1; k <= 8; ++k) {
+    Sample g = s0, f = s0;
+    g.constraint_error_rms = 1e-3 * std::pow(2.0, static_cast<double>(k));  // 2e-3 .. 0.256: last quarter 0.19
+    f.constraint_error_rms = k <= 2 ? 1e-3 * static_cast<double>(k) : 0.5;  // jumps, then flat
+    growing.observe(k, s, g);
+    bounded.observe(k, s, f);
+  }
+  EXPECT_EQ(codes(growing), std::vector<std::string>{"error_growth"});
+  EXPECT_TRUE(bounded.warnings().empty());
+}
+
+TEST(Health, TunnellingThroughAPlaneAndThroughASphere) {
+  Model m = one_particle(0.01);
+  m.gravity = Vec3::Zero();
+  m.planes.push_back(PlaneCollider{});  // y >= 0
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  HealthMonitor h(m, s, measure(m, s, b), 10, false);
+  s.x.row(0) = Vec3(0, -0.005, 0);  // overlapping by less than its radius: a contact, not a tunnel
+  h.observe(1, s, measure(m, s, b));
+  EXPECT_TRUE(h.warnings().empty());
+  s.x.row(0) = Vec3(0, -0.5, 0);
+  h.observe(2, s, measure(m, s, b));
+  ASSERT_EQ(codes(h), std::vector<std::string>{"tunnelling"});
+  EXPECT_EQ(h.warnings()[0].step, 2);
+
+  // Through a sphere of radius 0.1 at the origin in one step, from x = -1 to x = +1.
+  Model ms = one_particle(0.01);
+  ms.gravity = Vec3::Zero();
+  ms.spheres.push_back(SphereCollider{Vec3::Zero(), 0.1, SphereSide::Outside});
+  Points a(1, 3), c(1, 3), d(1, 3);
+  a << -1, 0, 0;
+  c << 1, 0, 0;
+  d << 1, 0.5, 0;
+  EXPECT_EQ(tunnelled_particles(ms, a, c, 0.0).count, 1);
+  EXPECT_EQ(tunnelled_particles(ms, a, d, 0.0).count, 0) << "a path that passes by the sphere";
+}
+
+}  // namespace
+}  // namespace pbdbench

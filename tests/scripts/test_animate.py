@@ -1,0 +1,85 @@
+"""scripts/animate.py and scripts/watch.sh: a collapsing FEM bar beside the same bar under a
+reference, as GIF (Pillow: frames counted) and MP4 (ffmpeg: frames counted with ffprobe); the
+frame colours follow the chosen field; a run without its export gets one; bad output names are
+refused.
+
+Environment: PBDBENCH_BIN, PBDBENCH_SCENARIOS, PBDBENCH_SCRIPTS.
+"""
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+from PIL import Image
+
+BIN = os.environ["PBDBENCH_BIN"]
+SCENARIOS = os.environ["PBDBENCH_SCENARIOS"]
+SCRIPTS = os.environ["PBDBENCH_SCRIPTS"]
+ANIMATE = os.path.join(SCRIPTS, "animate.py")
+BAR = ["--set", "scene.youngs_modulus=2e5", "--set", "scene.poisson_ratio=0.45", "--set", "time.duration=0.25"]
+
+
+def run(*args, env=None):
+    return subprocess.run(list(args), capture_output=True, text=True, env=env)
+
+
+class Animate(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.mkdtemp(prefix="pbdbench_animate_")
+        cls.xpbd = os.path.join(cls.dir, "xpbd.h5")
+        cls.ref = os.path.join(cls.dir, "ref.h5")
+        fem = os.path.join(SCENARIOS, "cantilever_fem.toml")
+        r = run(BIN, "run", fem, *BAR, "--set", "solver.substeps=1", "--set", "solver.iterations=10",
+                "--out", cls.xpbd, "--quiet")
+        assert r.returncode == 0, r.stdout + r.stderr
+        r = run(BIN, "run", fem, *BAR, "--out", cls.ref, "--quiet", "--no-xdmf")  # xpbd, 40 substeps
+        assert r.returncode == 0, r.stdout + r.stderr
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.dir, ignore_errors=True)
+
+    def test_gif_side_by_side_with_the_export_made_on_the_way(self):
+        out = os.path.join(self.dir, "bar.gif")
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "ref.viz.h5")))
+        env = dict(os.environ, PBDBENCH_BIN=BIN)
+        r = run(sys.executable, ANIMATE, self.xpbd, self.ref, "-o", out, "--max-frames", "6", env=env)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "ref.viz.h5")), "animate.py exported the run")
+        with Image.open(out) as im:
+            self.assertEqual(im.n_frames, 6)
+            im.seek(5)
+            last = np.asarray(im.convert("RGB"), dtype=int)
+            im.seek(0)
+            first = np.asarray(im.convert("RGB"), dtype=int)
+        self.assertGreater(int(np.abs(last - first).sum()), 0, "the frames differ: the bar moves")
+        self.assertIn("2 run(s)", r.stdout)
+
+    def test_mp4_has_one_video_frame_per_run_frame(self):
+        out = os.path.join(self.dir, "bar.mp4")
+        r = run(sys.executable, ANIMATE, self.xpbd, "-o", out, "--field", "change", "--pbdbench", BIN)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        p = run("ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries",
+                "stream=nb_read_frames", "-of", "csv=p=0", out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(int(p.stdout.strip()), 16, "0.25 s at a frame per 1/60 s, and the initial frame")
+
+    def test_sparse_frames_say_how_to_ask_for_more_and_bad_names_are_refused(self):
+        sparse = os.path.join(self.dir, "sparse.h5")
+        r = run(BIN, "run", os.path.join(SCENARIOS, "hanging_chain.toml"), "--set", "time.duration=0.5",
+                "--set", "output.frame_every=10", "--out", sparse, "--quiet")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        r = run(sys.executable, ANIMATE, sparse, "-o", os.path.join(self.dir, "chain.gif"))
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("output.frame_every=1", r.stderr)
+        r = run(sys.executable, ANIMATE, sparse, "-o", os.path.join(self.dir, "chain.avi"))
+        self.assertEqual(r.returncode, 2)
+        self.assertIn(".mp4 or .gif", r.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main()
