@@ -29,6 +29,8 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <limits>
@@ -36,8 +38,11 @@
 #include <stdexcept>
 
 #include "runfile/build_info.hpp"
+#include "runfile/h5_io.hpp"
+#include "runfile/layout.hpp"
 #include "runfile/output_guard.hpp"
 #include "runfile/shadow_file.hpp"
+#include "runfile/utc_now.hpp"
 
 namespace pbdbench {
 
@@ -57,17 +62,8 @@ std::string RunFileData::status() const {
 }
 
 std::vector<std::string> RunFileData::warnings() const {
-  std::vector<std::string> out;
   auto it = attributes.find("warnings");
-  if (it == attributes.end()) return out;
-  size_t start = 0;
-  while (start < it->second.size()) {
-    size_t end = it->second.find('\n', start);
-    if (end == std::string::npos) end = it->second.size();
-    if (end > start) out.push_back(it->second.substr(start, end - start));
-    start = end + 1;
-  }
-  return out;
+  return it == attributes.end() ? std::vector<std::string>() : layout::split_lines(it->second);
 }
 
 namespace {
@@ -87,29 +83,10 @@ constexpr size_t kMaxPendingRows = 4096;
   throw std::runtime_error("run file " + path.string() + ": " + what);
 }
 
-std::string h5_message(const H5::Exception& e) {
-  std::string msg = e.getFuncName();
-  if (!msg.empty()) msg += ": ";
-  return msg + e.getDetailMsg();
-}
-
-std::string utc_now_iso8601() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
+std::string h5_message(const H5::Exception& e) { return h5::message(e); }
 
 // ---------------------------------------------------------------------------------------------
 // Attributes. Strings are variable-length UTF-8 (h5py reads them as str, not bytes).
-
-H5::StrType vlen_utf8() {
-  H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
-  type.setCset(H5T_CSET_UTF8);
-  return type;
-}
 
 // A fresh attribute `name` of this type and space (an existing one is removed first).
 H5::Attribute fresh_attribute(H5::H5Object& obj, const std::string& name, const H5::DataType& type,
@@ -131,7 +108,7 @@ H5::Attribute scalar_attribute(H5::H5Object& obj, const std::string& name,
 }
 
 void set_attr(H5::H5Object& obj, const std::string& name, const std::string& value) {
-  const H5::StrType type = vlen_utf8();
+  const H5::StrType type = h5::utf8();
   scalar_attribute(obj, name, type).write(type, value);
 }
 
@@ -152,7 +129,7 @@ void set_attr(H5::H5Object& obj, const std::string& name, double value) {
 }
 
 void set_attr(H5::H5Object& obj, const std::string& name, const std::vector<std::string>& values) {
-  const H5::StrType type = vlen_utf8();
+  const H5::StrType type = h5::utf8();
   const hsize_t n = values.size();
   H5::Attribute attr = fresh_attribute(obj, name, type, H5::DataSpace(1, &n));
   if (values.empty()) return;
@@ -438,7 +415,7 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
     set_attr(file, "wall_time", 0.0);
     set_attr(file, "exploded_step", -1LL);
     set_attr(file, "exploded_time", -1.0);
-    set_attr(file, "created", utc_now_iso8601());
+    set_attr(file, "created", utc_now());
     const BuildInfo& build = build_info();
     set_attr(file, "pbdbench_version", build.version);
     set_attr(file, "git_commit", build.git_commit);
@@ -636,67 +613,124 @@ void RunFileWriter::finish(RunStatus status, const std::string& reason, long ste
 
 namespace {
 
-std::vector<std::string> read_string_list(hid_t attr) {
-  std::vector<std::string> out;
-  const hid_t space = H5Aget_space(attr);
-  const hssize_t n = H5Sget_simple_extent_npoints(space);
-  const hid_t type = H5Tcopy(H5T_C_S1);
-  H5Tset_size(type, H5T_VARIABLE);
-  H5Tset_cset(type, H5T_CSET_UTF8);
-  if (n > 0) {
-    std::vector<char*> buf(static_cast<size_t>(n), nullptr);
-    if (H5Aread(attr, type, buf.data()) >= 0) {
-      for (char* s : buf) out.emplace_back(s ? s : "");
-      H5Dvlen_reclaim(type, space, H5P_DEFAULT, buf.data());
+// A (rows, K) integer dataset of /model as K-tuples (rows = 0 when absent).
+template <size_t K>
+std::vector<std::array<int, K>> read_tuples(const H5::Group& model, const std::string& name) {
+  std::vector<std::array<int, K>> out;
+  if (!model.nameExists(name)) return out;
+  const H5::DataSet ds = model.openDataSet(name);
+  const H5::DataSpace space = ds.getSpace();
+  hsize_t dims[2] = {0, 0};
+  if (space.getSimpleExtentNdims() != 2) throw std::runtime_error("/model/" + name + " is not 2-D");
+  space.getSimpleExtentDims(dims);
+  if (dims[1] != K) throw std::runtime_error("/model/" + name + " is not (rows, " + std::to_string(K) + ")");
+  out.resize(dims[0]);
+  if (dims[0] > 0) ds.read(out.data(), H5::PredType::NATIVE_INT);
+  return out;
+}
+
+template <class T>
+std::vector<T> read_column(const H5::Group& model, const std::string& name, const H5::PredType& type) {
+  std::vector<T> out;
+  if (!model.nameExists(name)) return out;
+  const H5::DataSet ds = model.openDataSet(name);
+  out.resize(static_cast<size_t>(ds.getSpace().getSimpleExtentNpoints()));
+  if (!out.empty()) ds.read(out.data(), type);
+  return out;
+}
+
+void read_model(const H5::Group& g, Model& m) {
+  using P = H5::PredType;
+  if (g.nameExists("rest_positions")) m.rest_positions = h5::read_points(g.openDataSet("rest_positions"), "/model/rest_positions");
+  m.inv_mass = read_column<double>(g, "inv_mass", P::NATIVE_DOUBLE);
+  m.radius = read_column<double>(g, "radius", P::NATIVE_DOUBLE);
+  const std::vector<double> gravity = read_column<double>(g, "gravity", P::NATIVE_DOUBLE);
+  if (gravity.size() == 3) m.gravity = Vec3(gravity[0], gravity[1], gravity[2]);
+  m.edges = read_tuples<2>(g, "edges");
+  m.triangles = read_tuples<3>(g, "triangles");
+  m.tets = read_tuples<4>(g, "tets");
+  const auto kind = read_column<signed char>(g, "constraint_kind", P::NATIVE_SCHAR);
+  const auto particles = read_tuples<4>(g, "constraint_particles");
+  const auto rest = read_column<double>(g, "constraint_rest", P::NATIVE_DOUBLE);
+  const auto compliance = read_column<double>(g, "constraint_compliance", P::NATIVE_DOUBLE);
+  const auto stiffness = read_column<double>(g, "constraint_stiffness", P::NATIVE_DOUBLE);
+  const auto damping = read_column<double>(g, "constraint_damping", P::NATIVE_DOUBLE);
+  const auto group = read_column<unsigned short>(g, "constraint_group", P::NATIVE_USHORT);
+  const size_t count = kind.size();
+  for (size_t size : {particles.size(), rest.size(), compliance.size(), stiffness.size(), damping.size(), group.size()})
+    if (size != count) throw std::runtime_error("/model's constraint arrays differ in length");
+  m.constraints.resize(count);
+  for (size_t k = 0; k < count; ++k) {
+    Constraint& c = m.constraints[k];
+    if (kind[k] < 0 || kind[k] >= kConstraintKindCount)
+      throw std::runtime_error("/model/constraint_kind has an unknown kind " + std::to_string(kind[k]));
+    c.kind = static_cast<ConstraintKind>(kind[k]);
+    c.particles = particles[k];
+    c.rest = rest[k];
+    c.compliance = compliance[k];
+    c.stiffness = stiffness[k];
+    c.damping = damping[k];
+    c.group = group[k];
+  }
+}
+
+// /frames: the times, and the positions and velocities of every frame or of the last.
+void read_frames(const H5::Group& g, RunFileParts::Frames which, bool velocities, RunFileData& data) {
+  if (g.nameExists("time")) data.frame_time = h5::read_doubles(g.openDataSet("time"));
+  for (auto [name, out] : {std::pair{"positions", &data.frames}, std::pair{"velocities", &data.velocities}}) {
+    if (!g.nameExists(name) || (out == &data.velocities && !velocities)) continue;
+    const H5::DataSet ds = g.openDataSet(name);
+    H5::DataSpace space = ds.getSpace();
+    hsize_t dims[3] = {0, 0, 0};
+    if (space.getSimpleExtentNdims() != 3) throw std::runtime_error(std::string("/frames/") + name + " is not 3-D");
+    space.getSimpleExtentDims(dims);
+    if (dims[2] != 3) throw std::runtime_error(std::string("/frames/") + name + " is not (F, n, 3)");
+    if (dims[0] != data.frame_time.size())
+      throw std::runtime_error(std::to_string(data.frame_time.size()) + " frame times for " +
+                               std::to_string(dims[0]) + " frames of " + name);
+    const hsize_t first = which == RunFileParts::Frames::Last && dims[0] > 0 ? dims[0] - 1 : 0;
+    const hsize_t count[3] = {dims[0] - first, dims[1], 3}, start[3] = {first, 0, 0};
+    if (count[0] == 0) continue;
+    std::vector<double> x(static_cast<size_t>(count[0] * count[1] * 3));
+    space.selectHyperslab(H5S_SELECT_SET, count, start);
+    const H5::DataSpace mem(3, count);
+    ds.read(x.data(), H5::PredType::NATIVE_DOUBLE, mem, space);
+    const hsize_t n = dims[1];
+    for (hsize_t f = 0; f < count[0]; ++f) {
+      Points p(static_cast<Eigen::Index>(n), 3);
+      std::copy(x.begin() + static_cast<long>(f * n * 3), x.begin() + static_cast<long>((f + 1) * n * 3), p.data());
+      out->push_back(std::move(p));
     }
   }
-  H5Tclose(type);
-  H5Sclose(space);
-  return out;
 }
 
 }  // namespace
 
 RunFileData read_run_file(const std::filesystem::path& path, bool with_series) {
+  RunFileParts parts;
+  parts.series = with_series;
+  return read_run_file(path, parts);
+}
+
+RunFileData read_run_file(const std::filesystem::path& path, const RunFileParts& parts) {
   H5::Exception::dontPrint();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) fail(path, "no such file");
   RunFileData data;
   try {
     H5::H5File file(path.string(), H5F_ACC_RDONLY);
-
-    const int nattrs = file.getNumAttrs();
-    for (int i = 0; i < nattrs; ++i) {
-      H5::Attribute attr = file.openAttribute(static_cast<unsigned>(i));
-      const std::string name = attr.getName();
-      if (attr.getSpace().getSimpleExtentNpoints() != 1) continue;
-      switch (attr.getTypeClass()) {
-        case H5T_STRING: {
-          std::string value;
-          attr.read(attr.getStrType(), value);
-          data.attributes[name] = value;
-          break;
-        }
-        case H5T_INTEGER:
-        case H5T_FLOAT: {
-          double value = 0.0;
-          attr.read(H5::PredType::NATIVE_DOUBLE, &value);
-          data.numbers[name] = value;
-          break;
-        }
-        default: break;
-      }
-    }
+    h5::read_attributes(file, data.attributes, data.numbers);
 
     if (file.nameExists("/model")) {
       H5::Group model = file.openGroup("/model");
-      if (model.attrExists("group_names")) {
-        H5::Attribute attr = model.openAttribute("group_names");
-        data.group_names = read_string_list(attr.getId());
+      if (model.attrExists("group_names")) data.group_names = h5::read_strings(model.openAttribute("group_names"));
+      if (parts.model) {
+        read_model(model, data.model);
+        data.model.group_names = data.group_names;
       }
     }
 
-    if (with_series && file.nameExists("/series")) {
+    if (parts.series && file.nameExists("/series")) {
       H5::Group group = file.openGroup("/series");
       const hsize_t count = group.getNumObjs();
       for (hsize_t i = 0; i < count; ++i) {
@@ -716,13 +750,68 @@ RunFileData read_run_file(const std::filesystem::path& path, bool with_series) {
           Points values(static_cast<Eigen::Index>(dims[0]), 3);
           if (dims[0] > 0) ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
           data.series3[name] = std::move(values);
+        } else {
+          continue;
+        }
+        if (ds.attrExists("units")) data.units[name] = h5::get_string(ds, "units");
+        if (ds.attrExists("doc")) data.docs[name] = h5::get_string(ds, "doc");
+        if (ds.attrExists("deterministic")) {
+          int deterministic = 1;
+          ds.openAttribute("deterministic").read(H5::PredType::NATIVE_INT, &deterministic);
+          if (deterministic == 0) data.nondeterministic.insert(name);
         }
       }
     }
+
+    if (parts.frames != RunFileParts::Frames::None && file.nameExists("/frames"))
+      read_frames(file.openGroup("/frames"), parts.frames, parts.velocities, data);
   } catch (const H5::Exception& e) {
     fail(path, "cannot read: " + h5_message(e));
+  } catch (const std::runtime_error& e) {
+    fail(path, e.what());
   }
   return data;
+}
+
+namespace {
+
+// 64-bit FNV-1a.
+struct Fnv {
+  std::uint64_t h = 1469598103934665603ull;
+  void add(const void* data, size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < n; ++i) {
+      h ^= p[i];
+      h *= 1099511628211ull;
+    }
+  }
+};
+
+}  // namespace
+
+std::string state_hash(const RunFileData& data) {
+  Fnv fnv;
+  for (const SeriesSpec& s : series_table()) {
+    if (!s.deterministic) continue;
+    const std::string name(s.name);
+    if (auto it = data.series.find(name); it != data.series.end())
+      fnv.add(it->second.data(), it->second.size() * sizeof(double));
+    if (auto it = data.series3.find(name); it != data.series3.end())
+      fnv.add(it->second.data(), static_cast<size_t>(it->second.size()) * sizeof(double));
+  }
+  if (!data.frames.empty()) {
+    const Points& last = data.frames.back();
+    fnv.add(last.data(), static_cast<size_t>(last.size()) * sizeof(double));
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv.h));
+  return hex;
+}
+
+std::string state_hash(const std::filesystem::path& path) {
+  RunFileParts parts;
+  parts.frames = RunFileParts::Frames::Last;
+  return state_hash(read_run_file(path, parts));
 }
 
 }  // namespace pbdbench
