@@ -27,6 +27,7 @@
 #include <H5Cpp.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <chrono>
 #include <cstdint>
@@ -36,6 +37,8 @@
 #include <limits>
 #include <optional>
 #include <stdexcept>
+#include <string_view>
+#include <type_traits>
 
 #include "runfile/build_info.hpp"
 #include "runfile/h5_io.hpp"
@@ -139,80 +142,183 @@ void set_attr(H5::H5Object& obj, const std::string& name, const std::vector<std:
 }
 
 // ---------------------------------------------------------------------------------------------
-// Fixed-size arrays under /model.
+// The arrays under /model, declared once (kModelArrays): the writer and the reader follow the
+// same table.
 
+// The file's and the memory's type of an element.
 template <class T>
-void write_array(H5::Group& group, const std::string& name, const H5::PredType& file_type,
-                 const H5::PredType& mem_type, std::vector<hsize_t> dims, const T* data,
-                 const char* units = nullptr) {
+struct Element;
+template <>
+struct Element<double> {
+  static const H5::PredType& file() { return H5::PredType::IEEE_F64LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_DOUBLE; }
+};
+template <>
+struct Element<int> {
+  static const H5::PredType& file() { return H5::PredType::STD_I32LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_INT; }
+};
+template <>
+struct Element<signed char> {
+  static const H5::PredType& file() { return H5::PredType::STD_I8LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_SCHAR; }
+};
+template <>
+struct Element<std::uint16_t> {
+  static const H5::PredType& file() { return H5::PredType::STD_U16LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_USHORT; }
+};
+
+struct ModelArray {
+  const char* name;   // dataset under /model
+  const char* units;  // its `units` attribute; nullptr: none (it depends on the constraint kind)
+  void (*write)(H5::Group& g, const ModelArray& a, const Model& m);
+  void (*read)(const H5::Group& g, const ModelArray& a, Model& m);
+};
+
+// Writes `values` as (rows,) when width is 0, else (rows, width).
+template <class T>
+void put_array(H5::Group& g, const ModelArray& a, const std::vector<T>& values, size_t width) {
+  std::vector<hsize_t> dims{width == 0 ? values.size() : values.size() / width};
+  if (width > 0) dims.push_back(width);
   const H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
-  H5::DataSet ds = group.createDataSet(name, file_type, space);
-  hsize_t count = 1;
-  for (hsize_t d : dims) count *= d;
-  if (count > 0) ds.write(data, mem_type);
-  if (units) set_attr(ds, "units", units);
+  H5::DataSet ds = g.createDataSet(a.name, Element<T>::file(), space);
+  if (!values.empty()) ds.write(values.data(), Element<T>::memory());
+  if (a.units != nullptr) set_attr(ds, "units", a.units);
 }
 
-template <size_t K>
-std::vector<int> flatten(const std::vector<std::array<int, K>>& rows) {
-  std::vector<int> out;
-  out.reserve(rows.size() * K);
-  for (const auto& r : rows) out.insert(out.end(), r.begin(), r.end());
-  return out;
+// Reads what put_array wrote (none when the dataset is absent); throws std::runtime_error when
+// it has another shape.
+template <class T>
+std::vector<T> take_array(const H5::Group& g, const ModelArray& a, size_t width) {
+  if (!g.nameExists(a.name)) return {};
+  const H5::DataSet ds = g.openDataSet(a.name);
+  const H5::DataSpace space = ds.getSpace();
+  const int rank = space.getSimpleExtentNdims();
+  hsize_t dims[2] = {0, 0};
+  if (rank == 1 || rank == 2) space.getSimpleExtentDims(dims);
+  if (rank != (width == 0 ? 1 : 2) || (width > 0 && dims[1] != width))
+    throw std::runtime_error(std::string("/model/") + a.name + " is not " +
+                             (width == 0 ? "1-D" : "(rows, " + std::to_string(width) + ")"));
+  std::vector<T> values(static_cast<size_t>(space.getSimpleExtentNpoints()));
+  if (!values.empty()) ds.read(values.data(), Element<T>::memory());
+  return values;
 }
+
+// A per-particle array (n).
+template <std::vector<double> Model::*Member>
+ModelArray per_particle(const char* name, const char* units) {
+  return {name, units,
+          [](H5::Group& g, const ModelArray& a, const Model& m) { put_array(g, a, m.*Member, 0); },
+          [](const H5::Group& g, const ModelArray& a, Model& m) { m.*Member = take_array<double>(g, a, 0); }};
+}
+
+// Cells of K particle indices (rows x K).
+template <size_t K, std::vector<std::array<int, K>> Model::*Member>
+ModelArray cells(const char* name) {
+  return {name, nullptr,
+          [](H5::Group& g, const ModelArray& a, const Model& m) {
+            std::vector<int> flat;
+            for (const auto& cell : m.*Member) flat.insert(flat.end(), cell.begin(), cell.end());
+            put_array(g, a, flat, K);
+          },
+          [](const H5::Group& g, const ModelArray& a, Model& m) {
+            const std::vector<int> flat = take_array<int>(g, a, K);
+            (m.*Member).resize(flat.size() / K);
+            for (size_t r = 0; r < (m.*Member).size(); ++r)
+              std::copy_n(flat.begin() + static_cast<long>(r * K), K, (m.*Member)[r].begin());
+          }};
+}
+
+// One field of every constraint, stored as T: a scalar (W = 0) or W values (an array field).
+template <class T, size_t W, auto Field>
+ModelArray per_constraint(const char* name, const char* units) {
+  return {name, units,
+          [](H5::Group& g, const ModelArray& a, const Model& m) {
+            std::vector<T> values;
+            for (const Constraint& c : m.constraints) {
+              if constexpr (W == 0)
+                values.push_back(static_cast<T>(c.*Field));
+              else
+                values.insert(values.end(), (c.*Field).begin(), (c.*Field).end());
+            }
+            put_array(g, a, values, W);
+          },
+          [](const H5::Group& g, const ModelArray& a, Model& m) {
+            const std::vector<T> values = take_array<T>(g, a, W);
+            const size_t rows = W == 0 ? values.size() : values.size() / W;
+            if (m.constraints.empty()) m.constraints.resize(rows);
+            if (rows != m.constraints.size())
+              throw std::runtime_error(std::string("/model/") + a.name + " has " + std::to_string(rows) +
+                                       " rows for " + std::to_string(m.constraints.size()) + " constraints");
+            for (size_t k = 0; k < rows; ++k) {
+              auto& field = m.constraints[k].*Field;
+              using F = std::remove_reference_t<decltype(field)>;
+              if constexpr (W > 0) {
+                std::copy_n(values.begin() + static_cast<long>(k * W), W, field.begin());
+              } else if constexpr (std::is_same_v<F, ConstraintKind>) {
+                if (values[k] < 0 || values[k] >= kConstraintKindCount)
+                  throw std::runtime_error(std::string("/model/") + a.name + " has an unknown kind " +
+                                           std::to_string(values[k]));
+                field = static_cast<ConstraintKind>(values[k]);
+              } else {
+                field = static_cast<F>(values[k]);
+              }
+            }
+          }};
+}
+
+const std::array kModelArrays = {
+    ModelArray{"rest_positions", "m",
+               [](H5::Group& g, const ModelArray& a, const Model& m) {
+                 const Points& x = m.rest_positions;
+                 put_array(g, a, std::vector<double>(x.data(), x.data() + x.size()), 3);
+               },
+               [](const H5::Group& g, const ModelArray& a, Model& m) {
+                 const std::vector<double> x = take_array<double>(g, a, 3);
+                 m.rest_positions.resize(static_cast<Eigen::Index>(x.size() / 3), 3);
+                 std::copy(x.begin(), x.end(), m.rest_positions.data());
+               }},
+    per_particle<&Model::inv_mass>("inv_mass", "1/kg"),
+    per_particle<&Model::radius>("radius", "m"),
+    ModelArray{"gravity", "m/s^2",
+               [](H5::Group& g, const ModelArray& a, const Model& m) {
+                 put_array(g, a, std::vector<double>{m.gravity[0], m.gravity[1], m.gravity[2]}, 0);
+               },
+               [](const H5::Group& g, const ModelArray& a, Model& m) {
+                 const std::vector<double> v = take_array<double>(g, a, 0);
+                 if (v.size() == 3) m.gravity = Vec3(v[0], v[1], v[2]);
+               }},
+    cells<2, &Model::edges>("edges"),
+    cells<3, &Model::triangles>("triangles"),
+    cells<4, &Model::tets>("tets"),
+    per_constraint<signed char, 0, &Constraint::kind>("constraint_kind", nullptr),
+    per_constraint<int, 4, &Constraint::particles>("constraint_particles", nullptr),
+    per_constraint<double, 0, &Constraint::rest>("constraint_rest", nullptr),
+    per_constraint<double, 0, &Constraint::compliance>("constraint_compliance", nullptr),
+    per_constraint<double, 0, &Constraint::stiffness>("constraint_stiffness", "1"),
+    // Damping is in s / (units of alpha): it depends on the kind, so no units attribute.
+    per_constraint<double, 0, &Constraint::damping>("constraint_damping", nullptr),
+    per_constraint<std::uint16_t, 0, &Constraint::group>("constraint_group", nullptr),
+};
 
 void write_model(H5::H5File& file, const Model& model) {
   H5::Group g = file.createGroup("/model");
-  const hsize_t n = static_cast<hsize_t>(model.particle_count());
-  const hsize_t m = model.constraints.size();
-  using P = H5::PredType;
-
-  write_array(g, "rest_positions", P::IEEE_F64LE, P::NATIVE_DOUBLE, {n, 3},
-              model.rest_positions.data(), "m");
-  write_array(g, "inv_mass", P::IEEE_F64LE, P::NATIVE_DOUBLE, {model.inv_mass.size()},
-              model.inv_mass.data(), "1/kg");
-  write_array(g, "radius", P::IEEE_F64LE, P::NATIVE_DOUBLE, {model.radius.size()},
-              model.radius.data(), "m");
-  write_array(g, "gravity", P::IEEE_F64LE, P::NATIVE_DOUBLE, {3}, model.gravity.data(), "m/s^2");
-  const auto edges = flatten(model.edges);
-  const auto triangles = flatten(model.triangles);
-  const auto tets = flatten(model.tets);
-  write_array(g, "edges", P::STD_I32LE, P::NATIVE_INT, {model.edges.size(), 2}, edges.data());
-  write_array(g, "triangles", P::STD_I32LE, P::NATIVE_INT, {model.triangles.size(), 3},
-              triangles.data());
-  write_array(g, "tets", P::STD_I32LE, P::NATIVE_INT, {model.tets.size(), 4}, tets.data());
-
-  std::vector<signed char> kind;
-  std::vector<int> particles;
-  std::vector<double> rest, compliance, stiffness, damping;
-  std::vector<unsigned short> group;
-  for (const Constraint& c : model.constraints) {
-    kind.push_back(static_cast<signed char>(c.kind));
-    particles.insert(particles.end(), c.particles.begin(), c.particles.end());
-    rest.push_back(c.rest);
-    compliance.push_back(c.compliance);
-    stiffness.push_back(c.stiffness);
-    damping.push_back(c.damping);
-    group.push_back(c.group);
+  for (const ModelArray& a : kModelArrays) {
+    a.write(g, a, model);
+    if (std::string_view(a.name) == "constraint_kind") {
+      H5::DataSet ds = g.openDataSet(a.name);
+      std::vector<std::string> names;
+      for (int k = 0; k < kConstraintKindCount; ++k)
+        names.emplace_back(to_string(static_cast<ConstraintKind>(k)));
+      set_attr(ds, "kind_names", names);
+    }
   }
-  write_array(g, "constraint_kind", P::STD_I8LE, P::NATIVE_SCHAR, {m}, kind.data());
-  {
-    H5::DataSet ds = g.openDataSet("constraint_kind");
-    std::vector<std::string> names;
-    for (int k = 0; k < kConstraintKindCount; ++k)
-      names.emplace_back(to_string(static_cast<ConstraintKind>(k)));
-    set_attr(ds, "kind_names", names);
-  }
-  write_array(g, "constraint_particles", P::STD_I32LE, P::NATIVE_INT, {m, 4}, particles.data());
-  write_array(g, "constraint_rest", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m}, rest.data());
-  write_array(g, "constraint_compliance", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m},
-              compliance.data());
-  write_array(g, "constraint_stiffness", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m},
-              stiffness.data(), "1");
-  // Damping is in s / (units of alpha): it depends on the kind, so no units attribute.
-  write_array(g, "constraint_damping", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m}, damping.data());
-  write_array(g, "constraint_group", P::STD_U16LE, P::NATIVE_USHORT, {m}, group.data());
   set_attr(g, "group_names", model.group_names);
+}
+
+void read_model(const H5::Group& g, Model& m) {
+  for (const ModelArray& a : kModelArrays) a.read(g, a, m);
 }
 
 // Rows are appended, never read back: a dataset's chunk cache needs to hold the chunk being
@@ -612,67 +718,6 @@ void RunFileWriter::finish(RunStatus status, const std::string& reason, long ste
 // Reader.
 
 namespace {
-
-// A (rows, K) integer dataset of /model as K-tuples (rows = 0 when absent).
-template <size_t K>
-std::vector<std::array<int, K>> read_tuples(const H5::Group& model, const std::string& name) {
-  std::vector<std::array<int, K>> out;
-  if (!model.nameExists(name)) return out;
-  const H5::DataSet ds = model.openDataSet(name);
-  const H5::DataSpace space = ds.getSpace();
-  hsize_t dims[2] = {0, 0};
-  if (space.getSimpleExtentNdims() != 2) throw std::runtime_error("/model/" + name + " is not 2-D");
-  space.getSimpleExtentDims(dims);
-  if (dims[1] != K) throw std::runtime_error("/model/" + name + " is not (rows, " + std::to_string(K) + ")");
-  out.resize(dims[0]);
-  if (dims[0] > 0) ds.read(out.data(), H5::PredType::NATIVE_INT);
-  return out;
-}
-
-template <class T>
-std::vector<T> read_column(const H5::Group& model, const std::string& name, const H5::PredType& type) {
-  std::vector<T> out;
-  if (!model.nameExists(name)) return out;
-  const H5::DataSet ds = model.openDataSet(name);
-  out.resize(static_cast<size_t>(ds.getSpace().getSimpleExtentNpoints()));
-  if (!out.empty()) ds.read(out.data(), type);
-  return out;
-}
-
-void read_model(const H5::Group& g, Model& m) {
-  using P = H5::PredType;
-  if (g.nameExists("rest_positions")) m.rest_positions = h5::read_points(g.openDataSet("rest_positions"), "/model/rest_positions");
-  m.inv_mass = read_column<double>(g, "inv_mass", P::NATIVE_DOUBLE);
-  m.radius = read_column<double>(g, "radius", P::NATIVE_DOUBLE);
-  const std::vector<double> gravity = read_column<double>(g, "gravity", P::NATIVE_DOUBLE);
-  if (gravity.size() == 3) m.gravity = Vec3(gravity[0], gravity[1], gravity[2]);
-  m.edges = read_tuples<2>(g, "edges");
-  m.triangles = read_tuples<3>(g, "triangles");
-  m.tets = read_tuples<4>(g, "tets");
-  const auto kind = read_column<signed char>(g, "constraint_kind", P::NATIVE_SCHAR);
-  const auto particles = read_tuples<4>(g, "constraint_particles");
-  const auto rest = read_column<double>(g, "constraint_rest", P::NATIVE_DOUBLE);
-  const auto compliance = read_column<double>(g, "constraint_compliance", P::NATIVE_DOUBLE);
-  const auto stiffness = read_column<double>(g, "constraint_stiffness", P::NATIVE_DOUBLE);
-  const auto damping = read_column<double>(g, "constraint_damping", P::NATIVE_DOUBLE);
-  const auto group = read_column<unsigned short>(g, "constraint_group", P::NATIVE_USHORT);
-  const size_t count = kind.size();
-  for (size_t size : {particles.size(), rest.size(), compliance.size(), stiffness.size(), damping.size(), group.size()})
-    if (size != count) throw std::runtime_error("/model's constraint arrays differ in length");
-  m.constraints.resize(count);
-  for (size_t k = 0; k < count; ++k) {
-    Constraint& c = m.constraints[k];
-    if (kind[k] < 0 || kind[k] >= kConstraintKindCount)
-      throw std::runtime_error("/model/constraint_kind has an unknown kind " + std::to_string(kind[k]));
-    c.kind = static_cast<ConstraintKind>(kind[k]);
-    c.particles = particles[k];
-    c.rest = rest[k];
-    c.compliance = compliance[k];
-    c.stiffness = stiffness[k];
-    c.damping = damping[k];
-    c.group = group[k];
-  }
-}
 
 // /frames: the times, and the positions and velocities of every frame or of the last.
 void read_frames(const H5::Group& g, RunFileParts::Frames which, bool velocities, RunFileData& data) {

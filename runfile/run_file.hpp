@@ -10,7 +10,8 @@
 //   /frames/time       (F,) s
 //   /frames/positions  (F, n, 3) m, chunked (1, n, 3), shuffle + gzip
 //   /frames/velocities (F, n, 3) m/s, the same (NaN rows where a frame came without them)
-//   /model/...         rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),
+//   /model/...         (declared once in run_file.cpp, kModelArrays, for the writer and the reader)
+//                      rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),
 //                      triangles (T,3), tets (K,4), constraint_kind (m), constraint_particles
 //                      (m,4), constraint_rest (m), constraint_compliance (m),
 //                      constraint_stiffness (m), constraint_damping (m), constraint_group (m);
