@@ -1,6 +1,5 @@
 #include "regress/regress.hpp"
 
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>

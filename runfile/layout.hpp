@@ -1,13 +1,16 @@
 // A file layout declared once, as tables: each attribute and each dataset of a file kind has a
 // name, units, a doc string and one accessor into the struct the file stores, and the writer and
 // the reader both walk the same tables (as the run file's series follow runfile/series.cpp).
-// Used by compare_file.cpp, converge_file.cpp and regress_file.cpp; only runfile/ includes it.
+// The tables are compare_file.cpp's and converge_file.cpp's (regress_file.cpp's columns are
+// plainer); write_file and read_file open every kind. Only runfile/ includes this header.
 //
 //   PBDBENCH_ATTRIBUTE(T, "name", "doc", member)    an attribute stored in T::member
 //   PBDBENCH_DERIVED(T, "name", "doc", expression)  written from an expression of `r` (a const
 //                                                   T&), not read back (constants, provenance)
-//   PBDBENCH_DATASET(T, "path", "units", "doc", member [, present])  a dataset of T::member,
-//                                                   written when `present` (an expression of `r`)
+//   PBDBENCH_DATASET(T, "path", "units", "doc", member [, present [, doc_of]])
+//                                                   a dataset of T::member, written when
+//                                                   present(r) (null: always), its doc doc_of(r)
+//                                                   where that depends on r
 #pragma once
 
 #include <array>
