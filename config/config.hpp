@@ -77,6 +77,11 @@ const std::vector<SceneKindInfo>& scene_kinds();
 // output.*, limits.* (and the keys of a [[collider]] entry, paths "collider.<key>").
 const std::vector<KeySpec>& common_keys();
 const std::vector<KeySpec>& collider_keys();
+// A [[body]] entry (paths "body.<key>"): its placement keys (kind, position, rotation, velocity,
+// angular_velocity) here; the rest are its kind's scene keys, "scene.<key>" written "body.<key>".
+// The kinds a body may be: chain, cloth, tet_block, mesh.
+const std::vector<KeySpec>& body_placement_keys();
+const std::vector<std::string>& body_kinds();
 
 // ---------------------------------------------------------------------------------------------
 // A resolved configuration: every key of the schema that applies, with its value and source.
@@ -90,6 +95,7 @@ struct Config {
   std::filesystem::path file;    // the scenario file it was loaded from
   std::map<std::string, Entry> entries;                 // path -> value (defaults filled in)
   std::vector<std::map<std::string, Entry>> colliders;  // one map per [[collider]], keys "collider.<key>"
+  std::vector<std::map<std::string, Entry>> bodies;     // one map per [[body]], keys "body.<key>"
 
   bool has(const std::string& path) const;
   const Entry& at(const std::string& path) const;  // throws ConfigError when absent

@@ -48,6 +48,11 @@ double position_of(const toml::node& node) {
   return static_cast<double>(b.line) * 1e6 + static_cast<double>(b.column);
 }
 
+// "body.size" -> "body.0.size"
+std::string body_name(int index, const std::string& path) {
+  return "body." + std::to_string(index) + path.substr(std::string("body").size());
+}
+
 std::string collider_name(int index, const std::string& path) {
   // "collider.radius" -> "collider.0.radius"
   return "collider." + std::to_string(index) + path.substr(std::string("collider").size());
@@ -322,6 +327,10 @@ class Loader {
         read_colliders(node);
         continue;
       }
+      if (key.str() == "body") {
+        read_bodies(node);
+        continue;
+      }
       if (const toml::table* sub = node.as_table(); sub && !sub->empty()) {
         flatten(*sub, std::string(key.str()) + ".", file_name_, top_);
         continue;
@@ -344,6 +353,24 @@ class Loader {
     raw.node = node;
     raw.source = source;
     raw.order = 1e15 + static_cast<double>(index);  // after everything in the file
+    if (o.path.rfind("body.", 0) == 0) {
+      // body.<index>.<key>: checked against the body's kind when resolved
+      const std::string rest = o.path.substr(5);
+      const auto dot = rest.find('.');
+      const std::string index_text = rest.substr(0, dot);
+      std::size_t i = 0;
+      const auto [end, ec] = std::from_chars(index_text.data(), index_text.data() + index_text.size(), i);
+      if (dot == std::string::npos || ec != std::errc() ||
+          end != index_text.data() + index_text.size() || i >= bodies_.size())
+        fail(source, o.path,
+             fmt::format("a body key is addressed as body.<index>.<key> with an index below the "
+                         "file's {} [[body]] entr{}, e.g. body.0.position",
+                         bodies_.size(), bodies_.size() == 1 ? "y" : "ies"));
+      raw.path = "body." + rest.substr(dot + 1);
+      raw.name = o.path;
+      bodies_[i].keys[raw.path] = raw;
+      return;
+    }
     if (o.path.rfind("collider.", 0) == 0) {
       // collider.<index>.<key>
       const std::string rest = o.path.substr(9);
@@ -467,6 +494,7 @@ class Loader {
       for (const KeySpec& k : collider_keys())
         if (detail::collider_key_applies(k.path, types[i]) && !config.colliders[i].count(k.path))
           config.colliders[i][k.path] = Entry{k.default_value, Source{}};
+    resolve_bodies(config);
     config.scenario_name = config.get_string("name");
 
     check_cross_keys(config);
@@ -474,6 +502,73 @@ class Loader {
   }
 
  private:
+  // The [[body]] entries: each one's kind decides its keys (that kind's scene keys, written
+  // without 'scene.'); placement keys besides. Errors name the entry, the key and its line.
+  void resolve_bodies(Config& config) const {
+    const KeySpec& kind_spec = *find_key(body_placement_keys(), "body.kind");
+    config.bodies.resize(bodies_.size());
+    for (std::size_t i = 0; i < bodies_.size(); ++i) {
+      const int index = static_cast<int>(i);
+      const RawMap& raws = bodies_[i].keys;
+      auto kit = raws.find("body.kind");
+      if (kit == raws.end())
+        fail(bodies_[i].source, body_name(index, "body.kind"),
+             fmt::format("[[body]] entry {} has no kind: write kind = one of {}", i,
+                         fmt::join(body_kinds(), ", ")));
+      const std::string kind = std::get<std::string>(Converter(kind_spec, kit->second).convert());
+      const SceneKindInfo& info = *detail::find_kind(kind);
+      std::vector<const Raw*> items;
+      for (const auto& [path, raw] : raws) items.push_back(&raw);
+      std::stable_sort(items.begin(), items.end(),
+                       [](const Raw* a, const Raw* b) { return a->order < b->order; });
+      auto& out = config.bodies[i];
+      for (const Raw* raw : items) {
+        const std::string leaf = raw->path.substr(5);
+        KeySpec spec;
+        if (const KeySpec* p = find_key(body_placement_keys(), raw->path)) {
+          spec = *p;
+        } else if (const KeySpec* k = find_key(info.keys, "scene." + leaf)) {
+          spec = *k;
+          spec.path = raw->path;
+        } else {
+          std::vector<std::string> own;
+          for (const KeySpec& p : body_placement_keys()) own.push_back(p.path.substr(5));
+          for (const KeySpec& k : info.keys) own.push_back(k.path.substr(6));
+          std::string message = fmt::format("unknown key '{}' in [[body]] entry {} (a {} body)",
+                                            leaf, i, kind);
+          const std::string close = suggest(leaf, own);
+          if (!close.empty()) message += " (did you mean '" + close + "'?)";
+          fail(raw->source, body_name(index, raw->path), message);
+        }
+        out[raw->path] = Entry{Converter(spec, *raw).convert(), raw->source};
+      }
+      for (const KeySpec& p : body_placement_keys())
+        if (!out.count(p.path)) out[p.path] = Entry{p.default_value, Source{}};
+      for (const KeySpec& k : info.keys) {
+        const std::string path = "body." + k.path.substr(6);
+        if (!out.count(path)) out[path] = Entry{k.default_value, Source{}};
+      }
+    }
+  }
+
+  void read_bodies(const toml::node& node) {
+    const Source source{file_name_, static_cast<int>(node.source().begin.line)};
+    const toml::array* a = node.as_array();
+    if (!a || node.is_table())
+      fail(source, "body", "bodies are an array of tables: write each as [[body]]");
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const toml::node& e = (*a)[i];
+      const Source es{file_name_, static_cast<int>(e.source().begin.line)};
+      const toml::table* t = e.as_table();
+      if (!t) fail(es, "body", fmt::format("body entry {} is not a table: write it as [[body]]", i));
+      RawCollider b;
+      b.source = es;
+      flatten(*t, "body.", file_name_, b.keys);
+      for (auto& [path, raw] : b.keys) raw.name = body_name(static_cast<int>(i), path);
+      bodies_.push_back(std::move(b));
+    }
+  }
+
   void read_colliders(const toml::node& node) {
     const Source source{file_name_, static_cast<int>(node.source().begin.line)};
     if (node.is_table())
@@ -629,6 +724,7 @@ class Loader {
   std::deque<toml::table> override_tables_;
   RawMap top_;
   std::vector<RawCollider> colliders_;
+  std::vector<RawCollider> bodies_;  // [[body]] entries, keys "body.<key>"
 };
 
 std::string trim(const std::string& s) {
@@ -793,6 +889,19 @@ std::string Config::to_toml() const {
       if (auto it = c.find(k.path); it != c.end())
         out += k.path.substr(9) + " = " + format_value(it->second.value) + "\n";
   }
+  for (const auto& b : bodies) {
+    out += "\n[[body]]\n";
+    for (const KeySpec& k : body_placement_keys())
+      if (auto it = b.find(k.path); it != b.end())
+        out += k.path.substr(5) + " = " + format_value(it->second.value) + "\n";
+    auto kind = b.find("body.kind");
+    if (kind == b.end()) continue;
+    if (const SceneKindInfo* info = detail::find_kind(std::get<std::string>(kind->second.value)))
+      for (const KeySpec& k : info->keys)
+        if (auto it = b.find("body." + k.path.substr(6));
+            it != b.end() && !find_key(body_placement_keys(), it->first))
+          out += k.path.substr(6) + " = " + format_value(it->second.value) + "\n";
+  }
   return out;
 }
 
@@ -846,6 +955,9 @@ void set_solver_option(SolverOptions& o, const std::string& path, const Value& v
   else if (path == "solver.ref.max_steps") o.ref_max_steps = static_cast<long>(whole());
   else if (path == "solver.ref.max_newton") o.ref_max_newton = static_cast<int>(whole());
   else if (path == "solver.ref.ignore_colliders") o.ref_ignore_colliders = flag();
+  else if (path == "solver.ref.barrier_distance") o.ref_barrier_distance = number();
+  else if (path == "solver.ref.barrier_stiffness") o.ref_barrier_stiffness = number();
+  else if (path == "solver.ref.friction_velocity") o.ref_friction_velocity = number();
   else if (path == "solver.global.tolerance") o.global_tolerance = number();
   else if (path == "solver.global.max_iterations") o.global_max_iterations = static_cast<int>(whole());
   else if (path == "solver.global.regularization") o.global_regularization = number();

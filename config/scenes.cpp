@@ -678,8 +678,120 @@ class SceneBuilder {
   std::vector<std::pair<int, Vec3>> initial_positions_;
 };
 
+
+// ---------------------------------------------------------------------------------------------
+// [[body]] entries: each is built as a scene of its kind from its own keys, placed (rotated about
+// its centroid, translated), given its initial velocity, and appended to the scene's model with
+// its indices shifted. Particle contact is switched on, so that the bodies (and the scene's own
+// body) collide with each other, particle against particle.
+
+// A ConfigError of a body's sub-scene, renamed: "scene.size" becomes "body.<i>.size".
+[[noreturn]] void rethrow_for_body(const ConfigError& e, std::size_t index) {
+  std::string message = e.what();
+  const Source& s = e.source();
+  const std::string prefix =
+      s.file.empty() ? "" : (s.line > 0 ? s.file + ":" + std::to_string(s.line) + ": " : s.file + ": ");
+  if (!prefix.empty() && message.rfind(prefix, 0) == 0) message = message.substr(prefix.size());
+  std::string key = e.key();
+  if (key.rfind("scene.", 0) == 0) key = key.substr(6);
+  else if (key == "scene") key = "kind";
+  throw ConfigError(s, "body." + std::to_string(index) + "." + key,
+                    fmt::format("[[body]] entry {}: {}", index, message));
+}
+
+void append_body(const Config& config, std::size_t index, Scene& scene) {
+  const std::map<std::string, Entry>& b = config.bodies[index];
+  Config sub = config;
+  sub.colliders.clear();
+  sub.bodies.clear();
+  for (auto it = sub.entries.begin(); it != sub.entries.end();)
+    it = it->first.rfind("scene.", 0) == 0 ? sub.entries.erase(it) : std::next(it);
+  for (const auto& [path, e] : b) {
+    if (detail::find_key(body_placement_keys(), path) && path != "body.kind") continue;
+    sub.entries["scene." + path.substr(5)] = e;
+  }
+  // A kind key that is also a placement key (velocity) keeps its kind's default: the placement
+  // applies it.
+  if (const SceneKindInfo* info = detail::find_kind(word(b, "body.kind")))
+    for (const KeySpec& k : info->keys)
+      if (!sub.entries.count(k.path)) sub.entries[k.path] = Entry{k.default_value, Source{}};
+  Scene body;
+  try {
+    body = SceneBuilder(sub).build();
+  } catch (const ConfigError& e) {
+    rethrow_for_body(e, index);
+  }
+  Model& m = scene.model;
+  const Model& bm = body.model;
+  const int np = m.particle_count(), nb = bm.particle_count();
+  const int motion0 = static_cast<int>(m.motions.size());
+  const int element0 = static_cast<int>(m.elements.size());
+
+  // Placement: x' = R (x - c) + c + position, c the centroid of the body's rest positions.
+  const Vec3 position = vec(b, "body.position");
+  const Vec3 rv = vec(b, "body.rotation") * (std::numbers::pi / 180.0);
+  const Mat3 R = rv.norm() > 0.0 ? Mat3(Eigen::AngleAxisd(rv.norm(), rv.normalized())) : Mat3(Mat3::Identity());
+  const Vec3 c = bm.rest_positions.colwise().mean().transpose();
+  auto place = [&](const Vec3& x) { return Vec3(R * (x - c) + c + position); };
+  const Vec3 v0 = vec(b, "body.velocity"), w0 = vec(b, "body.angular_velocity");
+  const Vec3 c_placed = c + position;
+
+  m.rest_positions.conservativeResize(np + nb, 3);
+  State& st = scene.initial;
+  st.x.conservativeResize(np + nb, 3);
+  st.v.conservativeResize(np + nb, 3);
+  for (int i = 0; i < nb; ++i) {
+    m.rest_positions.row(np + i) = place(bm.rest_positions.row(i).transpose()).transpose();
+    const Vec3 x = place(body.initial.x.row(i).transpose());
+    st.x.row(np + i) = x.transpose();
+    Vec3 v = R * body.initial.v.row(i).transpose();
+    if (bm.inv_mass[static_cast<std::size_t>(i)] > 0.0) v += v0 + w0.cross(x - c_placed);
+    st.v.row(np + i) = v.transpose();
+    m.inv_mass.push_back(bm.inv_mass[static_cast<std::size_t>(i)]);
+    m.radius.push_back(bm.radius[static_cast<std::size_t>(i)]);
+  }
+  for (auto e : bm.edges) m.edges.push_back({e[0] + np, e[1] + np});
+  for (auto t : bm.triangles) m.triangles.push_back({t[0] + np, t[1] + np, t[2] + np});
+  for (auto t : bm.tets) m.tets.push_back({t[0] + np, t[1] + np, t[2] + np, t[3] + np});
+  m.surface_closed = (m.triangles.size() == bm.triangles.size() || m.surface_closed) && bm.surface_closed;
+  for (Constraint con : bm.constraints) {
+    for (int k = 0; k < arity(con.kind); ++k) con.particles[static_cast<std::size_t>(k)] += np;
+    if (con.element >= 0) con.element += element0;
+    con.group = m.group_index(bm.group_names[con.group]);
+    m.constraints.push_back(con);
+  }
+  for (FemElement el : bm.elements) {
+    for (int k = 0; k < el.vertices; ++k) el.particles[static_cast<std::size_t>(k)] += np;
+    // Dm' = R Dm, so Dm'^-1 = Dm^-1 R^T: the placed body is at rest (F = I), not rotated.
+    el.rest_inverse = el.rest_inverse * R.transpose();
+    m.elements.push_back(el);
+  }
+  for (const Motion& mo : bm.motions) m.motions.push_back(mo);
+  for (Attachment a : bm.attachments) {
+    a.particle += np;
+    a.anchor = place(a.anchor);
+    if (a.motion >= 0) a.motion += motion0;
+    m.attachments.push_back(a);
+  }
+  m.particle_contact = true;
+  st.lambda.resize(static_cast<std::size_t>(m.constraint_count()), 0.0);
+}
+
 }  // namespace
 
-Scene build_scene(const Config& config) { return SceneBuilder(config).build(); }
+Scene build_scene(const Config& config) {
+  Scene scene = SceneBuilder(config).build();
+  if (config.bodies.empty()) return scene;
+  for (std::size_t i = 0; i < config.bodies.size(); ++i) append_body(config, i, scene);
+  State fresh = rest_state(scene.model);  // every array of the state sized for the whole model
+  fresh.x = scene.initial.x;
+  fresh.v = scene.initial.v;
+  scene.initial = fresh;
+  const std::vector<ModelProblem> problems = check_model(scene.model, {});
+  if (!problems.empty())
+    throw ConfigError(config.bodies.front().at("body.kind").source, "body",
+                      "the scene with its [[body]] entries is unsound: " + problems.front().what);
+  return scene;
+}
 
 }  // namespace pbdbench::config

@@ -558,8 +558,15 @@ const std::vector<KeySpec>& common_keys() {
         integer("solver.ref.max_newton", so.ref_max_newton, within(1, 100000),
                 "reference: Newton iterations allowed per nonlinear solve"),
         boolean("solver.ref.ignore_colliders", so.ref_ignore_colliders,
-                "reference: run a scene that has colliders without its contacts (the references "
-                "have none yet; the run file records this key)"),
+                "reference: run a scene that has colliders without its contacts (ref-be "
+                "simulates them, the other references refuse them; the run file records this key)"),
+        real("solver.ref.barrier_distance", so.ref_barrier_distance, "m", above(0),
+             "ref-be with contact: d_hat, the IPC barrier acts on gaps below this"),
+        real("solver.ref.barrier_stiffness", so.ref_barrier_stiffness, "N/m", at_least(0),
+             "ref-be with contact: kappa, the barrier's stiffness; 0 = the heaviest dynamic "
+             "particle's weight per d_hat"),
+        real("solver.ref.friction_velocity", so.ref_friction_velocity, "m/s", above(0),
+             "ref-be with contact: eps_v, friction is smoothed to 0 below this sliding speed"),
         real("solver.global.tolerance", so.global_tolerance, "m", above(0),
              "global-*: converged when the step's KKT residual, in position units, is below this"),
         integer("solver.global.max_iterations", so.global_max_iterations, within(1, 1000000),
@@ -678,6 +685,27 @@ const ColliderTable& collider_table() {
 }  // namespace
 
 const std::vector<KeySpec>& collider_keys() { return collider_table().keys; }
+
+const std::vector<std::string>& body_kinds() {
+  static const std::vector<std::string> kinds = {"chain", "cloth", "tet_block", "mesh"};
+  return kinds;
+}
+
+const std::vector<KeySpec>& body_placement_keys() {
+  static const std::vector<KeySpec> keys = {
+      text("body.kind", "tet_block", body_kinds(),
+           "the body's scene kind; its keys are that kind's scene keys, written without 'scene.'"),
+      vec3("body.position", Vec3::Zero(), "m", kAny,
+           "translation added to every particle after the rotation"),
+      vec3("body.rotation", Vec3::Zero(), "deg", kAny,
+           "rotation vector (axis times angle in degrees) about the body's centroid"),
+      vec3("body.velocity", Vec3::Zero(), "m/s", kAny,
+           "initial velocity of every dynamic particle (added to the kind's own)"),
+      vec3("body.angular_velocity", Vec3::Zero(), "rad/s", kAny,
+           "initial angular velocity about the body's centroid (after the placement)"),
+  };
+  return keys;
+}
 
 namespace detail {
 

@@ -112,8 +112,12 @@ void HealthMonitor::observe(long step, const State& state, const Sample& s) {
       w.worst_step = step;
     }
   };
-  if (!energy_sources_ && std::isfinite(s.total_energy)) {
-    const double gain = s.total_energy - e0_;
+  // The motion energy (kinetic + gravitational) against the initial total energy: with no source,
+  // K + U_g = E(0) - E_el <= E(0) since E_el >= 0, whatever the elastic energy's accounting
+  // (an unconverged stiff constraint's C^2 / 2 alpha, or compliances pbd never used).
+  const double motion = s.kinetic_energy + s.potential_energy;
+  if (!energy_sources_ && std::isfinite(motion)) {
+    const double gain = motion - e0_;
     note(energy_, gain, gain > th_.energy_gain * energy_scale_);
   }
   for (const auto& [what, drift] : {std::pair<const char*, double>{"tet volume", s.volume_drift},
@@ -146,8 +150,9 @@ std::vector<RunWarning> HealthMonitor::warnings() const {
   std::vector<RunWarning> out;
   if (energy_.seen)
     out.push_back({"energy_gain", energy_.first_step, energy_.first_time,
-                   fmt::format("total energy rose {:.3g} J above its initial value (most at step {}) "
-                               "with no energy source; threshold {:.3g} J = {} x the energy scale {:.3g} J",
+                   fmt::format("kinetic + gravitational energy rose {:.3g} J above the initial total "
+                               "energy (most at step {}) with no energy source; threshold {:.3g} J = {} x "
+                               "the energy scale {:.3g} J",
                                energy_.worst, energy_.worst_step, th_.energy_gain * energy_scale_,
                                th_.energy_gain, energy_scale_)});
   if (volume_.seen)

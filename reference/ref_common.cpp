@@ -46,9 +46,17 @@ void check_reference_model(const std::string& solver, const Model& model,
       os << solver << " does not simulate contacts, and the scene has ";
       for (size_t k = 0; k < what.size(); ++k) os << (k ? " and " : "") << what[k];
       os << "; set solver.ref.ignore_colliders = true to run it without them";
+      if (solver == "ref-bdf" || solver == "ref-sdirk2")
+        os << ", or use ref-be, which simulates contact with a barrier (an adaptive or "
+              "multistep method would need the collision check inside its own step and error "
+              "control, which CVODE and ARKODE do not offer)";
       throw std::invalid_argument(os.str());
     }
   }
+}
+
+bool has_contact(const Model& model) {
+  return !model.planes.empty() || !model.spheres.empty() || model.particle_contact;
 }
 
 LinearSolverKind linear_solver_kind(const SolverOptions& options) {

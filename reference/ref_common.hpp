@@ -29,6 +29,9 @@ void check_reference_model(const std::string& solver, const Model& model,
 // options.ref_linear_solver as a LinearSolverKind (throws std::invalid_argument when unknown).
 LinearSolverKind linear_solver_kind(const SolverOptions& options);
 
+// True when the model has colliders or particle contact.
+bool has_contact(const Model& model);
+
 // The times where the scripted motion of an attached particle is not smooth (sorted, distinct):
 // a Linear motion's start and stop (finite, after the start), an Oscillate or Circle motion's
 // start. The kinematic particle's velocity jumps there, so the force has a kink in t (a jump

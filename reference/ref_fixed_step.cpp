@@ -15,6 +15,7 @@
 #include "reference/first_order_system.hpp"
 #include "reference/integrators.hpp"
 #include "reference/ref_common.hpp"
+#include "reference/ref_contact.hpp"
 
 namespace pbdbench {
 
@@ -334,6 +335,9 @@ class RefFixedStep final : public Solver {
 }  // namespace
 
 std::unique_ptr<Solver> make_ref_be(const SolverOptions& options, const Model& model) {
+  // Contact (colliders, particle contact) is simulated by the incremental-potential form with
+  // the IPC barrier (reference/ref_contact.hpp) unless the scene asks to ignore it.
+  if (has_contact(model) && !options.ref_ignore_colliders) return make_ref_be_contact(options, model);
   check_reference_model("ref-be", model, options);
   return std::make_unique<RefFixedStep>("ref-be", FixedStepMethod::BackwardEuler, options, model);
 }

@@ -164,9 +164,18 @@ const std::array kSeries = {
                "(global-ceres) iterations in the step",
                1, true, PBDBENCH_REPORT(linear_iterations)},
     SeriesSpec{"residual_position", "m",
-               "global solvers: the KKT residual of the step's last substep in position units "
-               "(NaN otherwise)",
+               "global solvers: the KKT residual of the step's last substep in position units; "
+               "ref-be with contact: the largest final Newton step of its substeps (NaN "
+               "otherwise)",
                1, true, PBDBENCH_REPORT(residual_position)},
+    SeriesSpec{"line_search_cuts", "1",
+               "ref-be with contact: halvings of the Newton steps in the line search, after the "
+               "collision check's bound, in the step",
+               1, true, PBDBENCH_REPORT(line_search_cuts)},
+    SeriesSpec{"barrier_energy", "J",
+               "ref-be with contact: the IPC barrier potential kappa sum b(d) at the end of the "
+               "step (NaN otherwise)",
+               1, true, PBDBENCH_REPORT(barrier_energy)},
     SeriesSpec{"constraint_drift", "mixed",
                "max |C| of the rigid constraints at the end of the step, in their units (ref-dae; "
                "NaN otherwise)",

@@ -137,6 +137,12 @@ std::string SolverOptions::validate() const {
   if (ref_max_newton < 1) return out_of_range("solver.ref.max_newton", ref_max_newton, "below the minimum", 1);
   if (ref_max_newton > 100000)
     return out_of_range("solver.ref.max_newton", ref_max_newton, "above the maximum", 100000);
+  if (!(ref_barrier_distance > 0.0) || !std::isfinite(ref_barrier_distance))
+    return out_of_range("solver.ref.barrier_distance", ref_barrier_distance, "not above", 0.0);
+  if (!(ref_barrier_stiffness >= 0.0) || !std::isfinite(ref_barrier_stiffness))
+    return out_of_range("solver.ref.barrier_stiffness", ref_barrier_stiffness, "below", 0.0);
+  if (!(ref_friction_velocity > 0.0) || !std::isfinite(ref_friction_velocity))
+    return out_of_range("solver.ref.friction_velocity", ref_friction_velocity, "not above", 0.0);
   if (!(global_tolerance > 0.0) || !std::isfinite(global_tolerance))
     return out_of_range("solver.global.tolerance", global_tolerance, "not above", 0.0);
   if (global_max_iterations < 1)

@@ -138,7 +138,13 @@ struct SolverOptions {
   long ref_max_steps = 1000000;       // solver.ref.max_steps: internal steps per output step
   int ref_max_newton = 50;            // solver.ref.max_newton: Newton iterations per solve
   bool ref_ignore_colliders = false;  // solver.ref.ignore_colliders: run a scene that has
-                                      // colliders without its contacts (the references have none)
+                                      // colliders without its contacts (ref-be simulates them)
+  double ref_barrier_distance = 1e-3;  // solver.ref.barrier_distance: d_hat, m, > 0: ref-be's
+                                      // contact barrier acts on gaps below this
+  double ref_barrier_stiffness = 0.0;  // solver.ref.barrier_stiffness: kappa, N/m, >= 0; 0 =
+                                      // automatic (reference/ref_contact.hpp)
+  double ref_friction_velocity = 1e-3;  // solver.ref.friction_velocity: eps_v, m/s, > 0: ref-be's
+                                      // friction is smoothed below this sliding speed
 
   // [solver.global]: the global projection solvers global-cholmod, global-cg, global-ceres
   // (reference/global_problem.hpp, docs/global.md).

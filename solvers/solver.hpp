@@ -46,6 +46,10 @@ struct StepReport {
                                   // (reference/global_problem.hpp)
   double constraint_drift = std::numeric_limits<double>::quiet_NaN();  // max |C| of the rigid
                                   // constraints at the end of the step (ref-dae), units of C
+  long line_search_cuts = 0;      // ref-be with contact: halvings of the Newton step in its line
+                                  // search (after the collision check's bound), summed
+  double barrier_energy = std::numeric_limits<double>::quiet_NaN();  // ref-be with contact: the
+                                  // barrier potential kappa sum b(d) at the end of the step, J
   // Wall-clock time per phase, summed over substeps, in seconds.
   double time_predict = 0.0;   // prediction (external forces), kinematic targets
   double time_contacts = 0.0;  // contact generation

@@ -45,6 +45,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"cantilever_fem", 99},    // 11 x 3 x 3 vertices
     {"cantilever_plane", 105},  // 21 x 5 vertices
     {"cloth_on_character", 768},  // 24 x 32
+    {"cloth_over_block", 919},    // 24 x 24 cloth and a [[body]] of 7 x 7 x 7 vertices
     {"failures/cloth_on_ground", 256},         // 16 x 16
     {"failures/cyclic_penetration", 3},        // A, B and C
     {"failures/heavy_inverse_mass", 11},       // 10 links
@@ -64,6 +65,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"particle_on_ground", 1},
     {"pendulum", 2},
     {"soft_cube_drop", 125},  // 5 x 5 x 5 vertices
+    {"soft_cube_stack", 192},  // three cubes of 4 x 4 x 4 vertices, two of them [[body]]
     {"spring", 2},
 };
 
@@ -116,8 +118,134 @@ TEST(Catalog, ToTomlRoundTrip) {
         EXPECT_EQ(entry.value, b.colliders[i].at(path).value) << path;
       }
     }
+    ASSERT_EQ(a.bodies.size(), b.bodies.size());
+    for (std::size_t i = 0; i < a.bodies.size(); ++i) {
+      ASSERT_EQ(a.bodies[i].size(), b.bodies[i].size());
+      for (const auto& [path, entry] : a.bodies[i]) {
+        ASSERT_TRUE(b.bodies[i].count(path)) << path;
+        EXPECT_EQ(entry.value, b.bodies[i].at(path).value) << path;
+      }
+    }
     EXPECT_EQ(b.to_toml(), text);
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// [[body]] entries.
+
+const char* kTwoBodies = R"([scene]
+kind = "chain"
+links = 2
+link_length = 0.1
+pin_top = false
+
+[[body]]
+kind = "tet_block"
+cells = [1, 1, 1]
+size = [0.2, 0.1, 0.1]
+origin = [0.0, 0.0, 0.0]
+position = [1.0, 2.0, 3.0]
+rotation = [0.0, 0.0, 90.0]
+velocity = [0.5, 0.0, 0.0]
+angular_velocity = [0.0, 0.0, 2.0]
+
+[[body]]
+kind = "cloth"
+resolution = [3, 3]
+pins = "top_corners"
+position = [0.0, 5.0, 0.0]
+)";
+
+TEST(Bodies, AreAppendedPlacedAndGivenTheirVelocities) {
+  const Config c = load_text(kTwoBodies, "two.toml");
+  ASSERT_EQ(c.bodies.size(), 2u);
+  const Scene s = build_scene(c);
+  const Scene chain = build_scene(load_text("[scene]\nkind = \"chain\"\nlinks = 2\nlink_length = 0.1\npin_top = false\n", "c.toml"));
+  Config block_only = load_text("[scene]\nkind = \"tet_block\"\ncells = [1, 1, 1]\nsize = [0.2, 0.1, 0.1]\n", "b.toml");
+  const Scene block = build_scene(block_only);
+  const Scene cloth = build_scene(load_text("[scene]\nkind = \"cloth\"\nresolution = [3, 3]\npins = \"top_corners\"\n", "k.toml"));
+  const int nc = chain.model.particle_count(), nb = block.model.particle_count(),
+            nk = cloth.model.particle_count();
+  ASSERT_EQ(s.model.particle_count(), nc + nb + nk);
+  ASSERT_EQ(s.model.constraint_count(),
+            chain.model.constraint_count() + block.model.constraint_count() + cloth.model.constraint_count());
+  EXPECT_TRUE(s.model.particle_contact);
+  EXPECT_TRUE(check_model(s.model).empty());
+  EXPECT_TRUE(check_state(s.model, s.initial).empty());
+  // The block: rotated 90 degrees about z about its centroid, then moved by (1, 2, 3).
+  const Vec3 c0 = block.model.rest_positions.colwise().mean().transpose();
+  const Mat3 R = Mat3(Eigen::AngleAxisd(std::numbers::pi / 2, Vec3::UnitZ()));
+  for (int i = 0; i < nb; ++i) {
+    const Vec3 x0 = block.model.rest_positions.row(i).transpose();
+    const Vec3 want = R * (x0 - c0) + c0 + Vec3(1, 2, 3);
+    EXPECT_LT((s.model.rest_positions.row(nc + i).transpose() - want).norm(), 1e-12) << i;
+    EXPECT_LT((s.initial.x.row(nc + i).transpose() - want).norm(), 1e-12) << i;
+    // v = v0 + w x (x - c), c the placed centroid.
+    const Vec3 v = Vec3(0.5, 0, 0) + Vec3(0, 0, 2).cross(want - (c0 + Vec3(1, 2, 3)));
+    EXPECT_LT((s.initial.v.row(nc + i).transpose() - v).norm(), 1e-12) << i;
+  }
+  // Constraints keep their rest values (a rigid placement) and point at the shifted particles.
+  for (int j = 0; j < block.model.constraint_count(); ++j) {
+    const Constraint& a = block.model.constraints[static_cast<size_t>(j)];
+    const Constraint& b = s.model.constraints[static_cast<size_t>(chain.model.constraint_count() + j)];
+    EXPECT_EQ(b.rest, a.rest);
+    EXPECT_EQ(b.particles[0], a.particles[0] + nc);
+    EXPECT_EQ(s.model.group_names[b.group], block.model.group_names[a.group]);
+  }
+  // The cloth's pins: attached to their placed positions.
+  std::set<int> pins = attached(s.model);
+  EXPECT_EQ(pins.size(), attached(cloth.model).size());
+  for (const Attachment& a : s.model.attachments)
+    EXPECT_LT((a.anchor - s.model.rest_positions.row(a.particle).transpose()).norm(), 1e-12);
+  // Round trip through to_toml.
+  const Config again = load_text(c.to_toml(), "two.toml");
+  ASSERT_EQ(again.bodies.size(), 2u);
+  EXPECT_EQ(again.bodies[0].at("body.rotation").value, c.bodies[0].at("body.rotation").value);
+  EXPECT_EQ(build_scene(again).initial.x, s.initial.x);
+}
+
+// A ConfigError's file, line and key for `text`, or "" when it loads and builds.
+std::string refusal(const std::string& text, const std::vector<std::string>& overrides = {}) {
+  try {
+    build_scene(load_text(text, "bad.toml", sets(overrides)));
+  } catch (const ConfigError& e) {
+    return e.source().file + ":" + std::to_string(e.source().line) + " " + e.key() + " | " + e.what();
+  }
+  return "";
+}
+
+TEST(Bodies, BadEntriesAreRefusedNamingFileKeyAndLine) {
+  const std::string base = "[scene]\nkind = \"particle\"\n\n[[body]]\nkind = \"cloth\"\n";
+  // An unknown key, with a suggestion; line 6.
+  std::string r = refusal(base + "resolutoin = [3, 3]\n");
+  EXPECT_NE(r.find("bad.toml:6 body.0.resolutoin"), std::string::npos) << r;
+  EXPECT_NE(r.find("did you mean 'resolution'"), std::string::npos) << r;
+  // A key of another kind.
+  r = refusal(base + "cells = [1, 1, 1]\n");
+  EXPECT_NE(r.find("bad.toml:6 body.0.cells"), std::string::npos) << r;
+  // A wrong type and a value out of range, named as body.0.<key>.
+  r = refusal(base + "position = 3.0\n");
+  EXPECT_NE(r.find("bad.toml:6 body.0.position"), std::string::npos) << r;
+  r = refusal(base + "mass = -1.0\n");
+  EXPECT_NE(r.find("bad.toml:6 body.0.mass"), std::string::npos) << r;
+  // No kind; a kind that is not a body kind.
+  r = refusal("[[body]]\nposition = [0.0, 0.0, 0.0]\n");
+  EXPECT_NE(r.find("bad.toml:1 body.0.kind"), std::string::npos) << r;
+  r = refusal("[[body]]\nkind = \"spheres\"\n");
+  EXPECT_NE(r.find("bad.toml:2 body.0.kind"), std::string::npos) << r;
+  // Not an array of tables.
+  r = refusal("[body]\nkind = \"cloth\"\n");
+  EXPECT_NE(r.find(" body |"), std::string::npos) << r;
+  // An override of a body that is not there, and one of a key that is.
+  r = refusal(base, {"body.3.mass=1.0"});
+  EXPECT_NE(r.find("body.3.mass"), std::string::npos) << r;
+  EXPECT_EQ(refusal(base, {"body.0.mass=2.0"}), "");
+  r = refusal(base, {"body.0.mass=-2.0"});
+  EXPECT_NE(r.find("body.0.mass"), std::string::npos) << r;
+  // What the kind's builder refuses is named as the body's key.
+  r = refusal("[[body]]\nkind = \"mesh\"\nfile = \"no_such_file.obj\"\n");
+  EXPECT_NE(r.find("body.0.file"), std::string::npos) << r;
+  EXPECT_NE(r.find("[[body]] entry 0"), std::string::npos) << r;
 }
 
 TEST(Catalog, ToTomlKeepsEveryBitOfAFloat) {

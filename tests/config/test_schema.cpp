@@ -210,8 +210,9 @@ TEST(Schema, SolverBoundsAgreeWithValidate) {
   // seed.restitution, ref.rtol, ref.max_steps, ref.max_newton, global.max_iterations,
   // global.regularization, global.cg_tolerance and global.cg_max_iterations; the minimum of
   // contact_margin, seed.reference_dt, seed.fast_speed, ref.atol, ref.atol_velocity,
-  // global.tolerance, force.contact_stiffness and force.contact_damping.
-  EXPECT_EQ(bounds_checked, 36);
+  // global.tolerance, force.contact_stiffness, force.contact_damping, ref.barrier_distance,
+  // ref.barrier_stiffness and ref.friction_velocity.
+  EXPECT_EQ(bounds_checked, 39);
 }
 
 TEST(Schema, SetSolverOptionRefusesOtherPaths) {

@@ -189,9 +189,10 @@ class CliTest(unittest.TestCase):
             self.assertIn("interrupted", attr(f, "status_reason"))
 
     def test_a_solver_that_cannot_run_the_scene_is_bad_input(self):
-        # Found after parsing (the solver refuses the scene), still exit 2 and no file.
+        # Found after parsing (the solver refuses the scene), still exit 2 and no file. ref-bdf
+        # refuses colliders (only ref-be simulates contact).
         out = os.path.join(self.dir, "cube.h5")
-        r = pbdbench("run", "soft_cube_drop", "--solver", "ref-be", "--set", "time.duration=0.05", "--out", out)
+        r = pbdbench("run", "soft_cube_drop", "--solver", "ref-bdf", "--set", "time.duration=0.05", "--out", out)
         self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
         self.assertIn("does not simulate contacts", r.stderr)
         self.assertIn("soft_cube_drop.toml", r.stderr)

@@ -49,6 +49,57 @@ TEST(Health, EnergyGainedWithoutSourceIsWarnedAboveTheThreshold) {
   EXPECT_TRUE(small.warnings().empty());
 }
 
+// The watched quantity is the motion energy (kinetic + gravitational) against the initial total:
+// elastic energy that grows without motion (an unconverged stiff constraint) is not a gain, a
+// stretched spring may turn its elastic energy into motion, and motion beyond it is warned.
+TEST(Health, EnergyGainIsMotionBeyondTheInitialTotalEnergy) {
+  Model m;
+  m.rest_positions = Points(2, 3);
+  m.rest_positions << 0, 0, 0, 2.5, 0, 0;
+  m.inv_mass = {1.0, 1.0};
+  m.radius = {0.0, 0.0};
+  m.gravity = Vec3::Zero();
+  const std::uint16_t g = m.group_index("stretch");
+  Constraint spring;  // C = 2.5 - 2 = 0.5, alpha = 0.01: E_el(0) = 12.5 J
+  spring.particles = {0, 1, -1, -1};
+  spring.rest = 2.0;
+  spring.compliance = 0.01;
+  spring.group = g;
+  m.constraints = {spring};
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  ASSERT_DOUBLE_EQ(s0.total_energy, 12.5);
+  // Stretched further at rest: E_el = 2^2 / 0.02 = 200 J, no motion: not a gain.
+  {
+    HealthMonitor h(m, s, s0, 10, false);
+    State t = s;
+    t.x.row(1) = Vec3(4.0, 0, 0);
+    h.observe(1, t, measure(m, t, b));
+    EXPECT_TRUE(h.warnings().empty());
+  }
+  // Released: at rest length each particle moves at 2.5 m/s, K = 2 x 0.5 x 2.5^2 = 6.25 J <= 12.5 J.
+  {
+    HealthMonitor h(m, s, s0, 10, false);
+    State t = s;
+    t.x.row(1) = Vec3(2.0, 0, 0);
+    t.v.row(0) = Vec3(2.5, 0, 0);
+    t.v.row(1) = Vec3(-2.5, 0, 0);
+    h.observe(1, t, measure(m, t, b));
+    EXPECT_TRUE(h.warnings().empty());
+  }
+  // Moving at 4 m/s each: K = 16 J > 12.5 J + 0.1 x the scale (12.5 J): 1.25 J.
+  {
+    HealthMonitor h(m, s, s0, 10, false);
+    State t = s;
+    t.x.row(1) = Vec3(2.0, 0, 0);
+    t.v.row(0) = Vec3(4.0, 0, 0);
+    t.v.row(1) = Vec3(-4.0, 0, 0);
+    h.observe(1, t, measure(m, t, b));
+    EXPECT_EQ(codes(h), std::vector<std::string>{"energy_gain"});
+  }
+}
+
 TEST(Health, VolumeLostBeyondTheThresholdIsWarned) {
   Model m;
   m.rest_positions = Points(4, 3);

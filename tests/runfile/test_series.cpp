@@ -150,6 +150,8 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   r.lu_factorizations = 51;
   r.linear_iterations = 52;
   r.residual_position = 53.5;
+  r.line_search_cuts = 69;
+  r.barrier_energy = 70.5;
   ShadowSample sh;
   sh.gap = 54.5;
   sh.gap_rms = 55.5;
@@ -187,7 +189,8 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"shadow_residual_h", {59.5}}, {"shadow_residual_position", {60.5}},
       {"shadow_iterations", {61}}, {"shadow_time", {62.5}}, {"shadow_cost_ratio", {63.5}},
       {"height_min", {64.5}}, {"sunk_count", {65}}, {"sunk_depth", {66.5}},
-      {"velocity_hf_rms", {67.5}}, {"shadow_force_error", {68.5}}, {"time_residual", {69.5}}};
+      {"velocity_hf_rms", {67.5}}, {"shadow_force_error", {68.5}}, {"time_residual", {69.5}},
+      {"line_search_cuts", {69}}, {"barrier_energy", {70.5}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";

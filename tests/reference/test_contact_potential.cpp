@@ -1,0 +1,181 @@
+// Tests of reference/contact_potential: the barrier's, gaps' and friction's derivatives against
+// central differences, the barrier's C2 continuity at d_hat, and the continuous collision check
+// against dense sampling of the straight paths.
+#include "reference/contact_potential.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Eigenvalues>
+
+#include "core/generators.hpp"
+
+namespace pbdbench {
+namespace {
+
+using barrier::Gap;
+
+TEST(Barrier, DerivativesMatchCentralDifferences) {
+  const double dh = 1e-3;
+  for (double d : {1e-6, 1e-5, 1e-4, 3e-4, 5e-4, 9e-4, 9.99e-4}) {
+    // A step small against d (the log's derivatives) and against d_hat - d (the barrier's
+    // third derivative ~ 3 / d_hat there).
+    const double e = 1e-3 * std::min(d, dh - d);
+    const double fd1 = (barrier::value(d + e, dh) - barrier::value(d - e, dh)) / (2 * e);
+    const double fd2 = (barrier::first(d + e, dh) - barrier::first(d - e, dh)) / (2 * e);
+    EXPECT_NEAR(barrier::first(d, dh), fd1, 1e-6 * std::abs(fd1) + 1e-12) << d;
+    EXPECT_NEAR(barrier::second(d, dh), fd2, 1e-6 * std::abs(fd2) + 1e-9) << d;
+  }
+  // Positive, decreasing, convex below d_hat; zero with zero slope and curvature at d_hat.
+  EXPECT_GT(barrier::value(5e-4, dh), 0.0);
+  EXPECT_LT(barrier::first(5e-4, dh), 0.0);
+  EXPECT_GT(barrier::second(5e-4, dh), 0.0);
+  EXPECT_NEAR(barrier::value(dh * (1 - 1e-9), dh), 0.0, 1e-20);
+  EXPECT_NEAR(barrier::first(dh * (1 - 1e-9), dh), 0.0, 1e-15);
+  EXPECT_NEAR(barrier::second(dh * (1 - 1e-6), dh), 0.0, 1e-5);  // b'' ~ 3 (d_hat - d) / d_hat
+  EXPECT_EQ(barrier::value(dh, dh), 0.0);
+  EXPECT_TRUE(std::isinf(barrier::value(0.0, dh)));
+  EXPECT_TRUE(std::isinf(barrier::value(-1e-6, dh)));
+}
+
+TEST(Barrier, FrictionMollifierDerivativesAndContinuity) {
+  const double e = 1e-5;
+  for (double y : {1e-8, 1e-7, 3e-6, 9e-6, 2e-5}) {
+    const double s = 1e-4 * e;
+    EXPECT_NEAR(barrier::f1(y, e), (barrier::f0(y + s, e) - barrier::f0(y - s, e)) / (2 * s), 1e-8);
+    EXPECT_NEAR(barrier::f1_prime(y, e),
+                (barrier::f1(y + s, e) - barrier::f1(y - s, e)) / (2 * s), 1e-6 / e);
+  }
+  // C1 at e: f0 and f1 continuous.
+  EXPECT_NEAR(barrier::f0(e * (1 - 1e-12), e), e, 1e-16);
+  EXPECT_NEAR(barrier::f1(e * (1 - 1e-12), e), 1.0, 1e-10);
+}
+
+// Positions of a small model: particle 0 and 1 free, a plane, three spheres.
+Model contact_model() {
+  Model m;
+  add_particle(m, Vec3(0.1, 0.3, -0.2), 1.0, 0.02);
+  add_particle(m, Vec3(0.15, 0.35, -0.1), 2.0, 0.03);
+  m.planes.push_back(PlaneCollider{Vec3(0.2, 2.0, 0.1), 0.3, 0.0, 0.5});  // non-unit on purpose
+  m.spheres.push_back(SphereCollider{Vec3(0.5, 0.0, 0.0), 0.2, SphereSide::Outside});
+  m.spheres.push_back(SphereCollider{Vec3(0.0, 0.5, 0.0), 0.9, SphereSide::Inside});
+  m.spheres.push_back(SphereCollider{Vec3(0.0, 0.8, 0.0), 0.9, SphereSide::Bowl});
+  m.particle_contact = true;
+  return m;
+}
+
+TEST(Barrier, GapDerivativesMatchCentralDifferences) {
+  Model m = contact_model();
+  Points x = m.rest_positions;
+  std::vector<Contact> cs = {{ContactKind::Plane, 0, 0},  {ContactKind::Sphere, 0, 0},
+                             {ContactKind::Sphere, 0, 1}, {ContactKind::Sphere, 1, 2},
+                             {ContactKind::Particle, 0, 1}};
+  for (const Contact& c : cs) {
+    const Gap g = barrier::gap(m, c, x, 0.0);
+    // Agrees with core/contacts.
+    const ConstraintEval ce = eval_contact(m, c, x, 0.0);
+    EXPECT_NEAR(g.d, ce.C, 1e-15);
+    const int parts = g.size / 3;
+    const int ids[2] = {c.a, c.b};
+    for (int k = 0; k < g.size; ++k) {
+      const double s = 1e-6;
+      Points xp = x, xm = x;
+      xp(ids[k / 3], k % 3) += s;
+      xm(ids[k / 3], k % 3) -= s;
+      const Gap gp = barrier::gap(m, c, xp, 0.0), gm = barrier::gap(m, c, xm, 0.0);
+      EXPECT_NEAR(g.grad[k], (gp.d - gm.d) / (2 * s), 1e-8) << to_string(c.kind) << " " << k;
+      for (int j = 0; j < g.size; ++j)
+        EXPECT_NEAR(g.hess(j, k), (gp.grad[j] - gm.grad[j]) / (2 * s), 1e-6)
+            << to_string(c.kind) << " " << j << "," << k;
+    }
+    EXPECT_TRUE(parts == 1 || parts == 2);
+  }
+}
+
+TEST(Barrier, FrictionDerivativesMatchCentralDifferences) {
+  barrier::FrictionContact f;
+  f.normal = Vec3(0.3, 0.9, 0.1).normalized();
+  f.lambda = 9.81;
+  f.mu = 0.4;
+  const Mat3 P = Mat3::Identity() - f.normal * f.normal.transpose();
+  const double e = 1e-4;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(-1, 1);
+  for (double scale : {1e-7, 3e-5, 9e-5, 1e-3}) {  // below and above e
+    const Vec3 u = P * Vec3(U(rng), U(rng), U(rng)).normalized() * scale;
+    const Vec3 g = barrier::friction_gradient(f, u, e);
+    const Mat3 H = barrier::friction_hessian(f, u, e);
+    for (int k = 0; k < 3; ++k) {
+      // Steps within the tangent plane, where u lives (D is a function of u there).
+      const Vec3 t = P.col(k);
+      const double s = 1e-4 * scale;
+      const double fd = (barrier::friction_value(f, u + s * t, e) -
+                         barrier::friction_value(f, u - s * t, e)) / (2 * s);
+      EXPECT_NEAR(g.dot(t), fd, 1e-6 * f.mu * f.lambda) << scale;
+      const Vec3 fdg = (barrier::friction_gradient(f, u + s * t, e) -
+                        barrier::friction_gradient(f, u - s * t, e)) / (2 * s);
+      EXPECT_LT((H * t - fdg).norm(), 1e-5 * f.mu * f.lambda / e + 1e-6 * fdg.norm()) << scale;
+    }
+    // Positive semi-definite.
+    Eigen::SelfAdjointEigenSolver<Mat3> es(H);
+    EXPECT_GE(es.eigenvalues().minCoeff(), -1e-9 * es.eigenvalues().maxCoeff());
+  }
+}
+
+// The smallest gap along the straight paths x0 + s (x1 - x0), s in [0, alpha], by sampling.
+double sampled_min_ratio(const Model& m, const Points& x0, const Points& x1, double alpha,
+                         const std::vector<Contact>& cs) {
+  double worst = 1e300;
+  for (const Contact& c : cs) {
+    const double d0 = barrier::gap(m, c, x0, 0.0).d;
+    for (int k = 0; k <= 2000; ++k) {
+      const double s = alpha * k / 2000.0;
+      const Points xs = x0 + s * (x1 - x0);
+      worst = std::min(worst, barrier::gap(m, c, xs, 0.0).d / d0);
+    }
+  }
+  return worst;
+}
+
+TEST(Barrier, StepBoundKeepsTheGapAndIsTight) {
+  Model m = contact_model();
+  std::vector<Contact> all = {{ContactKind::Plane, 0, 0},  {ContactKind::Sphere, 0, 0},
+                              {ContactKind::Sphere, 1, 0}, {ContactKind::Sphere, 0, 1},
+                              {ContactKind::Sphere, 1, 1}, {ContactKind::Sphere, 0, 2},
+                              {ContactKind::Sphere, 1, 2}, {ContactKind::Particle, 0, 1}};
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-1, 1);
+  int bounded = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    Points x0 = m.rest_positions;
+    Points x1 = x0;
+    for (int i = 0; i < 2; ++i)
+      for (int k = 0; k < 3; ++k) x1(i, k) += 0.4 * U(rng);
+    // Only contacts separated at the start count (as in a step from a feasible state).
+    std::vector<Contact> cs;
+    for (const Contact& c : all)
+      if (barrier::gap(m, c, x0, 0.0).d > 0.0) cs.push_back(c);
+    const std::vector<Contact> pairs = {{ContactKind::Particle, 0, 1}};
+    const double alpha = barrier::step_bound(m, x0, x1, 0.0, 0.0, pairs, 0.9);
+    ASSERT_GT(alpha, 0.0);
+    ASSERT_LE(alpha, 1.0);
+    // No gap below 10 % of its start along [0, alpha] ...
+    EXPECT_GE(sampled_min_ratio(m, x0, x1, alpha, cs), 0.1 - 1e-9) << trial;
+    // ... and, when the bound cuts the step, some gap reaches 10 % at alpha (tight).
+    if (alpha < 1.0) {
+      ++bounded;
+      const Points xa = x0 + alpha * (x1 - x0);
+      double r = 1e300;
+      for (const Contact& c : cs) {
+        r = std::min(r, barrier::gap(m, c, xa, 0.0).d / barrier::gap(m, c, x0, 0.0).d);
+      }
+      EXPECT_NEAR(r, 0.1, 1e-7) << trial;
+    }
+  }
+  EXPECT_GT(bounded, 50);  // the trials exercise the bound
+}
+
+}  // namespace
+}  // namespace pbdbench
