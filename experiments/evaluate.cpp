@@ -1,7 +1,5 @@
 #include "experiments/evaluate.hpp"
 
-#include <H5Cpp.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -27,60 +25,38 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// A one-dimensional dataset of the run file's model (/model/<name>) as doubles; empty when absent.
-std::vector<double> read_model_array(const fs::path& path, const char* name) {
-  std::vector<double> out;
-  try {
-    H5::Exception::dontPrint();
-    H5::H5File file(path.string(), H5F_ACC_RDONLY);
-    const std::string where = std::string("/model/") + name;
-    if (!file.nameExists(where)) return out;
-    H5::DataSet ds = file.openDataSet(where);
-    out.resize(static_cast<size_t>(ds.getSpace().getSimpleExtentNpoints()));
-    if (!out.empty()) ds.read(out.data(), H5::PredType::NATIVE_DOUBLE);
-  } catch (const H5::Exception&) {
-    out.clear();
-  }
-  return out;
+// The largest distance any particle with inverse mass 0 moves from its place in the first frame:
+// 0 when pins hold. NaN without frames. Kinematic particles (attachments with a motion) have
+// inverse mass 0 too and move by design.
+double pinned_drift(const std::vector<Points>& frames, const std::vector<double>& inv_mass) {
+  if (frames.empty() || static_cast<size_t>(frames.front().rows()) != inv_mass.size()) return kNaN;
+  double drift = 0.0;
+  for (size_t f = 1; f < frames.size(); ++f)
+    for (size_t i = 0; i < inv_mass.size(); ++i) {
+      if (inv_mass[i] != 0.0) continue;
+      const auto row = static_cast<Eigen::Index>(i);
+      double d2 = 0.0;
+      for (int k = 0; k < 3; ++k) {
+        const double d = frames[f](row, k) - frames.front()(row, k);
+        d2 += d * d;
+      }
+      drift = std::max(drift, std::sqrt(d2));
+    }
+  return drift;
 }
 
-// The largest distance any particle with inverse mass 0 moves from its place in the first frame
-// (/frames/positions): 0 when pins hold. NaN without frames. Kinematic particles (attachments
-// with a motion) have inverse mass 0 too and move by design.
-double read_pinned_drift(const fs::path& path, const std::vector<double>& inv_mass) {
-  try {
-    H5::Exception::dontPrint();
-    H5::H5File file(path.string(), H5F_ACC_RDONLY);
-    if (!file.nameExists("/frames/positions")) return kNaN;
-    H5::DataSet ds = file.openDataSet("/frames/positions");
-    hsize_t dims[3] = {0, 0, 0};
-    if (ds.getSpace().getSimpleExtentNdims() != 3) return kNaN;
-    ds.getSpace().getSimpleExtentDims(dims);
-    if (dims[0] == 0 || dims[1] != inv_mass.size()) return kNaN;
-    std::vector<double> x(static_cast<size_t>(dims[0] * dims[1] * dims[2]));
-    ds.read(x.data(), H5::PredType::NATIVE_DOUBLE);
-    double drift = 0.0;
-    const size_t n = static_cast<size_t>(dims[1]);
-    for (size_t f = 1; f < dims[0]; ++f)
-      for (size_t i = 0; i < n; ++i) {
-        if (inv_mass[i] != 0.0) continue;
-        double d2 = 0.0;
-        for (size_t k = 0; k < 3; ++k) {
-          const double d = x[(f * n + i) * 3 + k] - x[i * 3 + k];
-          d2 += d * d;
-        }
-        drift = std::max(drift, std::sqrt(d2));
-      }
-    return drift;
-  } catch (const H5::Exception&) {
-    return kNaN;
-  }
+RunFileParts run_scope_parts() {
+  RunFileParts parts;
+  parts.frames = RunFileParts::Frames::All;
+  parts.velocities = false;
+  parts.model = true;
+  return parts;
 }
 
 // One trial's run file as the scope of a measure's expression.
 class RunScope final : public Scope {
  public:
-  explicit RunScope(const fs::path& path) : data_(read_run_file(path)) {
+  explicit RunScope(const fs::path& path) : data_(read_run_file(path, run_scope_parts())) {
     for (const auto& [name, rows] : data_.series3) {
       const char* comps[] = {".x", ".y", ".z"};
       for (int k = 0; k < 3; ++k) {
@@ -105,10 +81,10 @@ class RunScope final : public Scope {
     scalars_["steps_completed"] = number("steps_completed");
     scalars_["wall_time"] = number("wall_time");
     scalars_["dt"] = number("dt");
-    const std::vector<double> w = read_model_array(path, "inv_mass");
-    const std::vector<double> kinds = read_model_array(path, "constraint_kind");
+    const std::vector<double>& w = data_.model.inv_mass;
     auto count_kind = [&](ConstraintKind k) {
-      return static_cast<double>(std::count(kinds.begin(), kinds.end(), static_cast<double>(k)));
+      return static_cast<double>(std::count_if(data_.model.constraints.begin(), data_.model.constraints.end(),
+                                               [&](const Constraint& c) { return c.kind == k; }));
     };
     scalars_["constraints_distance"] = count_kind(ConstraintKind::Distance);
     scalars_["constraints_volume"] = count_kind(ConstraintKind::Volume);
@@ -116,7 +92,8 @@ class RunScope final : public Scope {
     scalars_["particles"] = static_cast<double>(w.size());
     scalars_["inv_mass_max"] = w.empty() ? kNaN : *std::max_element(w.begin(), w.end());
     scalars_["inv_mass_min"] = w.empty() ? kNaN : *std::min_element(w.begin(), w.end());
-    scalars_["pinned_drift"] = read_pinned_drift(path, w);
+    scalars_["pinned_drift"] = pinned_drift(data_.frames, w);
+    data_.frames = {};  // the positions are not kept: only the series and scalars are looked up
   }
 
   std::optional<double> scalar(const std::string& name) const override {

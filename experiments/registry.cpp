@@ -16,6 +16,7 @@
 
 #include "experiments/experiment.hpp"
 #include "experiments/sha256.hpp"
+#include "runfile/utc_now.hpp"
 
 namespace pbdbench::experiments {
 
@@ -73,15 +74,6 @@ std::map<std::string, std::string> string_map(const toml::node* node, const fs::
 }  // namespace
 
 fs::path registry_of(const fs::path& experiments_dir) { return experiments_dir.parent_path() / "registry.toml"; }
-
-std::string utc_now_iso() {
-  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 std::vector<Registration> read_registry(const fs::path& file) {
   std::vector<Registration> out;
@@ -267,7 +259,7 @@ int register_experiments(const std::vector<Experiment>& chosen, const fs::path& 
       out << fmt::format("{}: already registered {} (sha256 {})\n", e.id, latest->registered, r.sha256.substr(0, 12));
       continue;
     }
-    r.registered = utc_now_iso();
+    r.registered = utc_now();
     r.note = note;
     r.earlier = earlier_results(results, e.id);
     if (r.earlier && note.empty())

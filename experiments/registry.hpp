@@ -81,9 +81,6 @@ RegistrationStatus registration_status(const std::vector<Registration>& registry
                                        const std::filesystem::path& experiment_file,
                                        const std::string& results_commit);
 
-// UTC now, ISO 8601 ("2026-11-24T15:02:11Z").
-std::string utc_now_iso();
-
 struct Experiment;
 
 // The results a report's JSON (results_json() of experiments/report.hpp) holds for one experiment:

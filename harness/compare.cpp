@@ -1,15 +1,12 @@
 #include "harness/compare.hpp"
 
-#include <H5Cpp.h>
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
-#include <ctime>
 #include <numbers>
 
-#include "harness/h5_write.hpp"
-#include "runfile/build_info.hpp"
+#include "runfile/compare_file.hpp"
 #include "runfile/run_file.hpp"
 #include "runfile/series.hpp"
 
@@ -20,36 +17,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// ---------------------------------------------------------------------------------------------
-// Reading.
-
-[[noreturn]] void read_failure(const fs::path& path, const std::string& what) {
-  throw std::runtime_error("run file " + path.string() + ": " + what);
-}
-
-bool has_path(const H5::H5File& file, const std::string& group, const std::string& name) {
-  if (!file.nameExists(group)) return false;
-  return file.openGroup(group).nameExists(name);
-}
-
-// A dataset of doubles of any rank, with its dimensions.
-std::vector<double> read_doubles(const H5::DataSet& ds, std::vector<hsize_t>& dims) {
-  const H5::DataSpace space = ds.getSpace();
-  dims.assign(static_cast<size_t>(space.getSimpleExtentNdims()), 0);
-  if (!dims.empty()) space.getSimpleExtentDims(dims.data());
-  hsize_t count = 1;
-  for (hsize_t d : dims) count *= d;
-  std::vector<double> values(count);
-  if (count > 0) ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
-  return values;
-}
-
-Points rows_of_three(const double* data, hsize_t rows) {
-  Points p(static_cast<Eigen::Index>(rows), 3);
-  std::copy(data, data + 3 * rows, p.data());
-  return p;
-}
 
 // ---------------------------------------------------------------------------------------------
 // Interpolation of the reference at the matched times.
@@ -140,60 +107,6 @@ std::map<std::string, std::string> describe(const CompareRun& r) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Writing.
-
-using h5::document;
-using h5::put;
-using h5::utf8;
-using h5::write;
-
-void write(H5::Group& g, const std::string& name, const Points& p, const std::string& units,
-           const std::string& doc) {
-  const hsize_t dims[2] = {static_cast<hsize_t>(p.rows()), 3};
-  H5::DataSet ds = g.createDataSet(name, H5::PredType::IEEE_F64LE, H5::DataSpace(2, dims));
-  if (p.rows() > 0) ds.write(p.data(), H5::PredType::NATIVE_DOUBLE);
-  document(ds, units, doc);
-}
-
-void write_scalar(H5::Group& g, const std::string& name, double value, const std::string& units,
-                  const std::string& doc) {
-  H5::DataSet ds = g.createDataSet(name, H5::PredType::IEEE_F64LE, H5::DataSpace(H5S_SCALAR));
-  ds.write(&value, H5::PredType::NATIVE_DOUBLE);
-  document(ds, units, doc);
-}
-
-// The indices of a TimeMatch: (K,) of the run's samples, (K, 2) of the reference's, (K,) weights.
-void write_match(H5::Group& g, const std::string& prefix, const TimeMatch& m,
-                 const std::string& what) {
-  const hsize_t k = m.time.size();
-  std::vector<long long> run(m.run.begin(), m.run.end()), ref;
-  for (size_t i = 0; i < m.time.size(); ++i) {
-    ref.push_back(m.lo[i]);
-    ref.push_back(m.hi[i]);
-  }
-  const hsize_t d1[1] = {k}, d2[2] = {k, 2};
-  H5::DataSet a = g.createDataSet("run_" + prefix, H5::PredType::STD_I64LE, H5::DataSpace(1, d1));
-  if (k > 0) a.write(run.data(), H5::PredType::NATIVE_LLONG);
-  document(a, "", "index of the run's " + what + " at each common time");
-  H5::DataSet b =
-      g.createDataSet("reference_" + prefix, H5::PredType::STD_I64LE, H5::DataSpace(2, d2));
-  if (k > 0) b.write(ref.data(), H5::PredType::NATIVE_LLONG);
-  document(b, "", "indices (lo, hi) of the reference's " + what +
-                      " around each common time; lo = hi where it has one at that time");
-  write(g, "reference_" + prefix + "_weight", m.weight, "1",
-        "weight of hi: reference = (1 - w) ref[lo] + w ref[hi]; 0 where it has one at that time");
-}
-
-std::string utc_now() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
-// ---------------------------------------------------------------------------------------------
 // The summary.
 
 std::string num(double v) { return fmt::format("{:.4g}", v == 0.0 ? 0.0 : v); }  // no "-0"
@@ -207,14 +120,6 @@ std::string run_line(const std::map<std::string, std::string>& r) {
                      r.at("status"));
 }
 
-std::string match_line(const TimeMatch& m, const char* what) {
-  const long interpolated = static_cast<long>(m.time.size()) - m.exact;
-  return fmt::format(
-      "{} common {}, t = {} to {} s (the run's {}); the reference's: {} at the same times, {} "
-      "interpolated between two of its own",
-      m.time.size(), what, num(m.time.front()), num(m.time.back()), what, m.exact, interpolated);
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -225,54 +130,23 @@ std::string CompareRun::attribute(const std::string& name) const {
 }
 
 CompareRun read_compare_run(const fs::path& path) {
-  const RunFileData data = read_run_file(path);  // throws naming the path
+  RunFileParts parts;
+  parts.frames = RunFileParts::Frames::All;
+  parts.velocities = false;
+  parts.model = true;
+  RunFileData data = read_run_file(path, parts);  // throws naming the path
+  if (data.model.rest_positions.rows() == 0 && data.model.inv_mass.empty())
+    throw std::runtime_error("run file " + path.string() + ": no /model/rest_positions");
   CompareRun r;
   r.path = path;
-  r.attributes = data.attributes;
-  r.series = data.series;
-  r.series3 = data.series3;
-  H5::Exception::dontPrint();
-  try {
-    const H5::H5File file(path.string(), H5F_ACC_RDONLY);
-    if (!has_path(file, "/model", "rest_positions")) read_failure(path, "no /model/rest_positions");
-    std::vector<hsize_t> dims;
-    const std::vector<double> rest = read_doubles(file.openDataSet("/model/rest_positions"), dims);
-    if (dims.size() != 2 || dims[1] != 3) read_failure(path, "/model/rest_positions is not (n, 3)");
-    r.rest_positions = rows_of_three(rest.data(), dims[0]);
-    const hsize_t n = dims[0];
-
-    if (has_path(file, "/frames", "time")) r.frame_time = read_doubles(file.openDataSet("/frames/time"), dims);
-    if (has_path(file, "/frames", "positions")) {
-      const std::vector<double> x = read_doubles(file.openDataSet("/frames/positions"), dims);
-      if (dims.size() != 3 || dims[1] != n || dims[2] != 3)
-        read_failure(path, fmt::format("/frames/positions is not (F, {}, 3)", n));
-      for (hsize_t f = 0; f < dims[0]; ++f) r.frames.push_back(rows_of_three(x.data() + f * n * 3, n));
-    }
-    if (r.frames.size() != r.frame_time.size())
-      read_failure(path, fmt::format("{} frame times for {} frames", r.frame_time.size(), r.frames.size()));
-
-    if (file.nameExists("/series")) {
-      const H5::Group series = file.openGroup("/series");
-      for (hsize_t i = 0; i < series.getNumObjs(); ++i) {
-        const std::string name = series.getObjnameByIdx(i);
-        if (series.childObjType(name) != H5O_TYPE_DATASET) continue;
-        const H5::DataSet ds = series.openDataSet(name);
-        if (ds.attrExists("units")) {
-          const H5::Attribute a = ds.openAttribute("units");
-          std::string units;
-          a.read(a.getStrType(), units);
-          r.units[name] = units;
-        }
-        if (ds.attrExists("deterministic")) {
-          int deterministic = 1;
-          ds.openAttribute("deterministic").read(H5::PredType::NATIVE_INT, &deterministic);
-          if (deterministic == 0) r.nondeterministic.insert(name);
-        }
-      }
-    }
-  } catch (const H5::Exception& e) {
-    read_failure(path, "cannot read: " + e.getFuncName() + ": " + e.getDetailMsg());
-  }
+  r.attributes = std::move(data.attributes);
+  r.rest_positions = std::move(data.model.rest_positions);
+  r.frame_time = std::move(data.frame_time);
+  r.frames = std::move(data.frames);
+  r.series = std::move(data.series);
+  r.series3 = std::move(data.series3);
+  r.units = std::move(data.units);
+  r.nondeterministic = std::move(data.nondeterministic);
   return r;
 }
 
@@ -467,88 +341,6 @@ CompareResult compare_runs(const CompareRun& run, const CompareRun& ref,
     r.period_relative_difference = (r.period_run - r.period_reference) / r.period_reference;
   }
   return r;
-}
-
-void write_compare_file(const fs::path& path, const CompareResult& r) {
-  H5::Exception::dontPrint();
-  try {
-    if (path.has_parent_path()) fs::create_directories(path.parent_path());
-    H5::H5File file(path.string(), H5F_ACC_TRUNC);
-    put(file, "content", std::string("pbdbench compare"));
-    put(file, "compare_format_version", 1LL);
-    for (const auto& [prefix, d] : {std::pair{"run", &r.run}, std::pair{"reference", &r.reference}})
-      for (const auto& [key, value] : *d) put(file, std::string(prefix) + "_" + key, value);
-    put(file, "until", r.until);
-    put(file, "end_time", r.frames.time.empty() ? kNaN : r.frames.time.back());
-    put(file, "frames_used", r.frames.time.empty() ? std::string() : match_line(r.frames, "frames"));
-    put(file, "rows_used", r.rows.time.empty() ? std::string() : match_line(r.rows, "rows"));
-    put(file, "frame_spacing_run", r.frame_spacing_run);
-    put(file, "frame_spacing_reference", r.frame_spacing_reference);
-    std::string warnings;
-    for (const std::string& w : r.warnings) warnings += (warnings.empty() ? "" : "\n") + w;
-    put(file, "warnings", warnings);
-    const BuildInfo& b = build_info();
-    put(file, "created", utc_now());
-    put(file, "pbdbench_version", std::string(b.version));
-    put(file, "git_commit", std::string(b.git_commit));
-    put(file, "compiler", std::string(b.compiler));
-    put(file, "build_type", std::string(b.build_type));
-    put(file, "cxx_flags", std::string(b.cxx_flags));
-
-    H5::Group g = file.createGroup("/compare");
-    write(g, "time", r.frames.time, "s", "common frame times (the run's frame times)");
-    write(g, "position_error_rms", r.position_error_rms, "m",
-          "root mean square over particles of |x_run - x_reference| at each common frame time");
-    write(g, "position_error_max", r.position_error_max, "m",
-          "max over particles of |x_run - x_reference| at each common frame time");
-    write_match(g, "frame", r.frames, "frames");
-    write(g, "series_time", r.rows.time, "s", "common series times (the run's series times)");
-    write_match(g, "row", r.rows, "series rows");
-
-    H5::Group d = g.createGroup("diff");
-    for (const auto& [name, v] : r.diff) {
-      const bool norm = r.diff_width.at(name) == 3;
-      write(d, name, v, r.diff_units.at(name),
-            norm ? "|run - reference| of the 3-vector series " + name + " at each series time"
-                 : "run - reference of the series " + name + " at each series time");
-    }
-
-    H5::Group o = g.createGroup("observables");
-    auto vector_obs = [&](const VectorObservable& v, const std::string& name,
-                          const std::string& units, const std::string& what) {
-      if (!v.present) return;
-      write(o, name + "_run", v.run, units, what + " of the run at each series time");
-      write(o, name + "_reference", v.reference, units,
-            what + " of the reference at each series time");
-      write(o, name + "_gap", v.gap, units, "|run - reference| of the " + what);
-      if (!v.relative_gap.empty())
-        write(o, name + "_relative_gap", v.relative_gap, "1",
-              "|run - reference| / |reference| of the " + what);
-    };
-    vector_obs(r.tip_displacement, "tip_displacement", "m", "tip displacement");
-    vector_obs(r.support_force, "support_force", "N", "support force");
-    if (r.pendulum) {
-      write(o, "pendulum_angle_run", r.pendulum_angle_run, "rad",
-            "pendulum angle of the run at each series time");
-      write(o, "pendulum_angle_reference", r.pendulum_angle_reference, "rad",
-            "pendulum angle of the reference at each series time");
-      write_scalar(o, "pendulum_period_run", r.period_run, "s",
-                   "mean time between upward zero crossings of the run's pendulum angle (NaN "
-                   "with less than one full period)");
-      write_scalar(o, "pendulum_period_reference", r.period_reference, "s",
-                   "the same of the reference");
-      write_scalar(o, "pendulum_periods_run", r.periods_run, "1", "full periods averaged (run)");
-      write_scalar(o, "pendulum_periods_reference", r.periods_reference, "1",
-                   "full periods averaged (reference)");
-      write_scalar(o, "pendulum_period_relative_difference", r.period_relative_difference, "1",
-                   "(period_run - period_reference) / period_reference");
-    }
-  } catch (const H5::Exception& e) {
-    throw std::runtime_error("compare file " + path.string() + ": cannot write: " +
-                             e.getFuncName() + ": " + e.getDetailMsg());
-  } catch (const fs::filesystem_error& e) {
-    throw std::runtime_error("compare file " + path.string() + ": " + e.what());
-  }
 }
 
 std::string compare_summary(const CompareResult& r) {

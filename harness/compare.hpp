@@ -2,7 +2,7 @@
 //
 //   read_compare_run(path)            a run file, with what compare needs of it
 //   compare_runs(run, ref, options)   the gaps at the common times
-//   write_compare_file(path, result)  the compare file (layout in results/README.md)
+//   write_compare_file(path, result)  the compare file (runfile/compare_file.hpp)
 //   compare_summary(result)           the terminal summary
 //
 // Common times are the run's own: its frame times for positions, its series times for the
@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/types.hpp"
+#include "runfile/compare_file.hpp"
 
 namespace pbdbench {
 
@@ -67,17 +68,6 @@ inline constexpr double kTimeTolerance = 1e-9;
 // build with a different compiler through.
 inline constexpr double kRestTolerance = 1e-9;
 
-// The common times of a run and a reference, and where the reference was sampled at each:
-// ref(t) = (1 - weight) ref[lo] + weight ref[hi], with lo == hi and weight 0 when the reference
-// has a sample at t itself.
-struct TimeMatch {
-  std::vector<double> time;   // (K) s, the common times (the run's sample times)
-  std::vector<long> run;      // (K) index of the run's sample at each time
-  std::vector<long> lo, hi;   // (K) indices of the reference's samples around each time
-  std::vector<double> weight; // (K) weight of hi, in [0, 1)
-  long exact = 0;             // times at which the reference has a sample of its own
-};
-
 // The run's times <= min(run's last, reference's last, until) that the reference's times cover
 // (both sorted ascending), each matched as above.
 TimeMatch match_times(const std::vector<double>& run_times, const std::vector<double>& ref_times,
@@ -91,48 +81,6 @@ TimeMatch match_times(const std::vector<double>& run_times, const std::vector<do
 double mean_period(const std::vector<double>& time, const std::vector<double>& angle,
                    int* periods = nullptr);
 
-// A width-3 observable of both runs at the common series times, and their gap.
-struct VectorObservable {
-  bool present = false;  // in both files, and not NaN throughout in both
-  Points run;            // (R x 3)
-  Points reference;      // (R x 3), interpolated at the run's times
-  std::vector<double> gap;           // (R) |run - reference|
-  std::vector<double> relative_gap;  // (R) gap / |reference| (support force only)
-};
-
-struct CompareResult {
-  // The two files: path, solver, scenario, status, config, git_commit (root attributes).
-  std::map<std::string, std::string> run, reference;
-  double until = std::numeric_limits<double>::infinity();
-
-  // Positions, at the run's frame times.
-  TimeMatch frames;
-  std::vector<double> position_error_rms;  // (F) m, RMS over particles of |x_run - x_ref|
-  std::vector<double> position_error_max;  // (F) m, max over particles of the same
-  double frame_spacing_run = 0.0;          // s, median spacing of the run's frames compared
-  double frame_spacing_reference = 0.0;    // s, the same of the reference's frames in the window
-
-  // Series, at the run's series times.
-  TimeMatch rows;
-  // name -> (R): run - reference for width-1 series, |run - reference| for width-3 series; every
-  // series both files have but time, the step counters and the wall-clock timings.
-  std::map<std::string, std::vector<double>> diff;
-  std::map<std::string, int> diff_width;         // name -> 1 or 3
-  std::map<std::string, std::string> diff_units;  // name -> units
-
-  // Observables of the scene.
-  VectorObservable tip_displacement;  // m
-  VectorObservable support_force;     // N
-  bool pendulum = false;              // both have pendulum_angle, not NaN throughout in both
-  std::vector<double> pendulum_angle_run, pendulum_angle_reference;  // (R) rad
-  double period_run = std::numeric_limits<double>::quiet_NaN();        // s
-  double period_reference = std::numeric_limits<double>::quiet_NaN();  // s
-  int periods_run = 0, periods_reference = 0;  // full periods averaged
-  double period_relative_difference = std::numeric_limits<double>::quiet_NaN();  // (run-ref)/ref
-
-  std::vector<std::string> warnings;  // sparse reference frames, different scenario names, ...
-};
-
 // Series that are not compared: time itself and the step counters (what the solver did, not
 // what the state is). The wall-clock timings are left out by their `deterministic` attribute.
 const std::set<std::string>& uncompared_series();
@@ -141,10 +89,6 @@ const std::set<std::string>& uncompared_series();
 // positions differ), options.until is negative or NaN, or they have no common frame.
 CompareResult compare_runs(const CompareRun& run, const CompareRun& reference,
                            const CompareOptions& options = {});
-
-// Writes the compare file (results/README.md, "Compare files"). Throws std::runtime_error
-// naming the path on failure.
-void write_compare_file(const std::filesystem::path& path, const CompareResult& result);
 
 // The terminal summary: the two runs, the frames used, the final and largest position error,
 // the final gaps of each observable, the periods, and the final differences of the series.

@@ -1,7 +1,5 @@
 #include "harness/converge.hpp"
 
-#include <H5Cpp.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,8 +17,6 @@
 #include "reference/global_ceres.hpp"
 #include "reference/global_newton.hpp"
 #include "reference/global_problem.hpp"
-#include "harness/h5_write.hpp"
-#include "runfile/build_info.hpp"
 #include "solvers/solver.hpp"
 #include "solvers/step_common.hpp"
 #include "solvers/substep.hpp"
@@ -97,32 +93,6 @@ ConvergeMethod from_history(const GlobalResult& r, std::string key, std::string 
   return m;
 }
 
-// ---------------------------------------------------------------------------------------------
-// Writing (the attribute and dataset conventions of the run and compare files).
-
-using h5::document;
-using h5::put;
-using h5::utf8;
-using h5::write;
-
-void write(H5::Group& g, const std::string& name, const std::vector<long>& v,
-           const std::string& units, const std::string& doc) {
-  const std::vector<long long> w(v.begin(), v.end());
-  const hsize_t dims[1] = {w.size()};
-  H5::DataSet ds = g.createDataSet(name, H5::PredType::STD_I64LE, H5::DataSpace(1, dims));
-  if (!w.empty()) ds.write(w.data(), H5::PredType::NATIVE_LLONG);
-  document(ds, units, doc);
-}
-
-std::string utc_now() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
 std::string num(double v) { return fmt::format("{:.3g}", v == 0.0 ? 0.0 : v); }
 
 }  // namespace
@@ -187,6 +157,7 @@ ConvergeResult run_converge(const config::Config& config, const ConvergeOptions&
   result.warmup_steps = options.warmup_steps;
   result.warmup_solver = base.name;
   result.tolerance = base.global_tolerance;
+  result.machine = cpu_model();
 
   // The global problem first: a scene it cannot hold is refused before any work.
   std::unique_ptr<GlobalProblem> problem_ptr;
@@ -341,74 +312,6 @@ ConvergeResult run_converge(const config::Config& config, const ConvergeOptions&
     result.methods.push_back(std::move(m));
   }
   return result;
-}
-
-void write_converge_file(const fs::path& path, const ConvergeResult& r) {
-  H5::Exception::dontPrint();
-  try {
-    if (path.has_parent_path()) fs::create_directories(path.parent_path());
-    H5::H5File file(path.string(), H5F_ACC_TRUNC);
-    put(file, "content", std::string("pbdbench converge"));
-    put(file, "converge_format_version", 1LL);
-    put(file, "scene", r.scene);
-    put(file, "scenario_file", r.scenario_file);
-    put(file, "config", r.config);
-    put(file, "dt", r.dt);
-    put(file, "h", r.dt);
-    put(file, "substeps", 1LL);
-    put(file, "time", r.time);
-    put(file, "warmup_steps", static_cast<long long>(r.warmup_steps));
-    put(file, "warmup_solver", r.warmup_solver);
-    put(file, "particles", static_cast<long long>(r.particles));
-    put(file, "dynamic_particles", static_cast<long long>(r.dynamic_particles));
-    put(file, "constraints", static_cast<long long>(r.constraints));
-    put(file, "rows", static_cast<long long>(r.rows));
-    put(file, "contacts", static_cast<long long>(r.contacts));
-    put(file, "tolerance", r.tolerance);
-    put(file, "start_residual", r.start_residual);
-    put(file, "residual_note", r.residual_note);
-    put(file, "error_note",
-        std::string("error: sqrt(sum m_i |x_i - x*_i|^2 / sum m_i) over the dynamic particles, "
-                    "x* the global-cholmod solution"));
-    std::string methods;
-    for (const ConvergeMethod& m : r.methods) methods += (methods.empty() ? "" : ",") + m.key;
-    put(file, "methods", methods);
-    const BuildInfo& b = build_info();
-    put(file, "machine", cpu_model());
-    put(file, "created", utc_now());
-    put(file, "pbdbench_version", std::string(b.version));
-    put(file, "git_commit", std::string(b.git_commit));
-    put(file, "compiler", std::string(b.compiler));
-    put(file, "build_type", std::string(b.build_type));
-    put(file, "cxx_flags", std::string(b.cxx_flags));
-
-    for (const ConvergeMethod& m : r.methods) {
-      H5::Group g = file.createGroup("/" + m.key);
-      put(g, "method", m.description);
-      put(g, "iteration_kind", m.iteration_kind);
-      put(g, "xpbd", static_cast<long long>(m.xpbd ? 1 : 0));
-      put(g, "converged", static_cast<long long>(m.converged ? 1 : 0));
-      put(g, "final_error", m.final_error);
-      if (m.xpbd) {
-        write(g, "iteration", m.iteration, "1", "projection sweeps of the step");
-        write(g, "residual", m.residual, "m", "Residuals::position of the step's result");
-        write(g, "time", m.time, "s",
-              "wall time of the whole step (fastest of up to 5 when under 20 ms)");
-        write(g, "error", m.error, "m", "mass-weighted RMS distance of the result from x*");
-      } else {
-        write(g, "iteration", m.iteration, "1", m.iteration_kind + " (0: the start, x~)");
-        write(g, "residual", m.residual, "m", "Residuals::position of the iterate");
-        write(g, "time", m.time, "s", "wall time since the solve began");
-        write(g, "inner_iterations", m.inner_iterations, "1",
-              "cumulative conjugate-gradient or Levenberg-Marquardt iterations");
-      }
-    }
-  } catch (const H5::Exception& e) {
-    throw std::runtime_error("converge file " + path.string() + ": cannot write: " +
-                             e.getFuncName() + ": " + e.getDetailMsg());
-  } catch (const fs::filesystem_error& e) {
-    throw std::runtime_error("converge file " + path.string() + ": " + e.what());
-  }
 }
 
 std::string converge_table(const ConvergeResult& r, double target) {

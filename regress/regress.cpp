@@ -1,7 +1,5 @@
 #include "regress/regress.hpp"
 
-#include <H5Cpp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -18,6 +16,7 @@
 #include "config/toml_text.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
+#include "runfile/regress_file.hpp"
 #include "runfile/run_file.hpp"
 #include "runfile/series.hpp"
 
@@ -63,18 +62,6 @@ double num(const toml::table& t, const std::string& key, const fs::path& file, c
   if (!v || !(*v >= 0.0) || !std::isfinite(*v)) fail(file, line_of(*n), prefix + key, "must be a finite number >= 0");
   return *v;
 }
-
-// 64-bit FNV-1a over bytes.
-struct Fnv {
-  std::uint64_t h = 1469598103934665603ull;
-  void add(const void* data, size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < n; ++i) {
-      h ^= p[i];
-      h *= 1099511628211ull;
-    }
-  }
-};
 
 std::string json_string(const std::string& s) {
   std::string out = "\"";
@@ -197,36 +184,6 @@ Registry load_registry(const fs::path& file) {
   }
   if (reg.cases.empty()) fail(file, 0, "case", "the registry has no [[case]]");
   return reg;
-}
-
-std::string state_hash(const fs::path& run_file) {
-  Fnv fnv;
-  const RunFileData data = read_run_file(run_file);
-  for (const SeriesSpec& s : series_table()) {
-    if (!s.deterministic) continue;
-    const std::string name(s.name);
-    if (auto it = data.series.find(name); it != data.series.end())
-      fnv.add(it->second.data(), it->second.size() * sizeof(double));
-    if (auto it = data.series3.find(name); it != data.series3.end())
-      fnv.add(it->second.data(), static_cast<size_t>(it->second.size()) * sizeof(double));
-  }
-  H5::Exception::dontPrint();
-  H5::H5File f(run_file.string(), H5F_ACC_RDONLY);
-  if (f.nameExists("/frames/positions")) {
-    H5::DataSet ds = f.openDataSet("/frames/positions");
-    hsize_t dims[3] = {0, 0, 0};
-    ds.getSpace().getSimpleExtentDims(dims);
-    if (dims[0] > 0) {
-      std::vector<double> last(static_cast<size_t>(dims[1] * dims[2]));
-      H5::DataSpace file_space = ds.getSpace();
-      const hsize_t start[3] = {dims[0] - 1, 0, 0}, count[3] = {1, dims[1], dims[2]};
-      file_space.selectHyperslab(H5S_SELECT_SET, count, start);
-      H5::DataSpace mem(3, count);
-      ds.read(last.data(), H5::PredType::NATIVE_DOUBLE, mem, file_space);
-      fnv.add(last.data(), last.size() * sizeof(double));
-    }
-  }
-  return fmt::format("{:016x}", fnv.h);
 }
 
 CaseResult measure_case(const Registry& reg, const CaseSpec& c, const fs::path& dir, bool force,
@@ -488,33 +445,11 @@ std::string report_markdown(const Report& rep, const std::string& header) {
 }
 
 void write_report_h5(const fs::path& path, const Report& rep) {
-  fs::create_directories(path.parent_path());
-  H5::Exception::dontPrint();
-  H5::H5File f(path.string(), H5F_ACC_TRUNC);
-  const hsize_t n = rep.rows.size();
-  auto strings = [&](const char* name, auto get) {
-    std::vector<std::string> v;
-    for (const Row& r : rep.rows) v.push_back(get(r));
-    std::vector<const char*> p;
-    for (const std::string& s : v) p.push_back(s.c_str());
-    H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
-    H5::DataSet ds = f.createDataSet(name, type, H5::DataSpace(1, &n));
-    if (n > 0) ds.write(p.data(), type);
-  };
-  auto numbers = [&](const char* name, auto get) {
-    std::vector<double> v;
-    for (const Row& r : rep.rows) v.push_back(get(r));
-    H5::DataSet ds = f.createDataSet(name, H5::PredType::NATIVE_DOUBLE, H5::DataSpace(1, &n));
-    if (n > 0) ds.write(v.data(), H5::PredType::NATIVE_DOUBLE);
-  };
-  strings("case", [](const Row& r) { return r.case_name; });
-  strings("metric", [](const Row& r) { return r.metric; });
-  strings("units", [](const Row& r) { return r.units; });
-  strings("verdict", [](const Row& r) { return std::string(to_string(r.verdict)); });
-  numbers("baseline", [](const Row& r) { return r.baseline; });
-  numbers("now", [](const Row& r) { return r.now; });
-  numbers("change", [](const Row& r) { return r.change; });
-  numbers("allowed", [](const Row& r) { return r.allowed; });
+  std::vector<RegressFileRow> rows;
+  for (const Row& r : rep.rows)
+    rows.push_back({r.case_name, r.metric, r.units, to_string(r.verdict), r.baseline, r.now, r.change,
+                    r.allowed});
+  write_regress_file(path, rows);
 }
 
 }  // namespace pbdbench::regress

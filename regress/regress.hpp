@@ -10,7 +10,8 @@
 //   better   beyond it in the good direction
 //   ratio    timing metrics: now / baseline is reported, never a verdict (machines are noisy)
 //
-// The bitwise tier: a 64-bit hash of each case's final positions and deterministic series,
+// The bitwise tier: a 64-bit hash of each case's final positions and deterministic series
+// (state_hash, runfile/run_file.hpp),
 // compared with the baseline's when the build (compiler, flags, build type) is the same, and
 // between two runs of the same build with --repeat (determinism).
 #pragma once
@@ -75,10 +76,6 @@ struct CaseResult {
   std::vector<std::string> warnings;  // the run file's warnings (metrics/health.hpp)
 };
 
-// The 64-bit FNV-1a hash of a run file's last frame of positions and of every deterministic
-// series, as 16 hex digits.
-std::string state_hash(const std::filesystem::path& run_file);
-
 // Runs a case (or reads its run file when current, unless force) and measures it. `make_solver`,
 // when set, replaces the registry's solver (tests of broken variants).
 CaseResult measure_case(const Registry& registry, const CaseSpec& c, const std::filesystem::path& dir,
@@ -117,6 +114,7 @@ Report compare(const Registry& registry, const std::vector<const CaseSpec*>& cas
 std::string report_table(const Report& report);     // plain text, for the terminal
 std::string report_markdown(const Report& report, const std::string& header);
 std::string results_json(const std::vector<CaseResult>& results);
+// regress.h5: the rows as columns (runfile/regress_file.hpp).
 void write_report_h5(const std::filesystem::path& path, const Report& report);
 
 }  // namespace pbdbench::regress

@@ -12,6 +12,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "runfile/utc_now.hpp"
+
 namespace pbdbench {
 
 namespace fs = std::filesystem;
@@ -40,15 +42,6 @@ bool has_hdf5_signature(const fs::path& path) {
   unsigned char head[8] = {};
   if (!in.read(reinterpret_cast<char*>(head), sizeof head)) return false;
   return std::memcmp(head, kHdf5Signature, sizeof head) == 0;
-}
-
-std::string utc_now() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
 }
 
 std::string host_name() {

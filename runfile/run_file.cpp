@@ -27,17 +27,25 @@
 #include <H5Cpp.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <chrono>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <limits>
 #include <optional>
 #include <stdexcept>
+#include <string_view>
+#include <type_traits>
 
 #include "runfile/build_info.hpp"
+#include "runfile/h5_io.hpp"
+#include "runfile/layout.hpp"
 #include "runfile/output_guard.hpp"
 #include "runfile/shadow_file.hpp"
+#include "runfile/utc_now.hpp"
 
 namespace pbdbench {
 
@@ -57,17 +65,8 @@ std::string RunFileData::status() const {
 }
 
 std::vector<std::string> RunFileData::warnings() const {
-  std::vector<std::string> out;
   auto it = attributes.find("warnings");
-  if (it == attributes.end()) return out;
-  size_t start = 0;
-  while (start < it->second.size()) {
-    size_t end = it->second.find('\n', start);
-    if (end == std::string::npos) end = it->second.size();
-    if (end > start) out.push_back(it->second.substr(start, end - start));
-    start = end + 1;
-  }
-  return out;
+  return it == attributes.end() ? std::vector<std::string>() : layout::split_lines(it->second);
 }
 
 namespace {
@@ -87,29 +86,10 @@ constexpr size_t kMaxPendingRows = 4096;
   throw std::runtime_error("run file " + path.string() + ": " + what);
 }
 
-std::string h5_message(const H5::Exception& e) {
-  std::string msg = e.getFuncName();
-  if (!msg.empty()) msg += ": ";
-  return msg + e.getDetailMsg();
-}
-
-std::string utc_now_iso8601() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
+std::string h5_message(const H5::Exception& e) { return h5::message(e); }
 
 // ---------------------------------------------------------------------------------------------
 // Attributes. Strings are variable-length UTF-8 (h5py reads them as str, not bytes).
-
-H5::StrType vlen_utf8() {
-  H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
-  type.setCset(H5T_CSET_UTF8);
-  return type;
-}
 
 // A fresh attribute `name` of this type and space (an existing one is removed first).
 H5::Attribute fresh_attribute(H5::H5Object& obj, const std::string& name, const H5::DataType& type,
@@ -131,7 +111,7 @@ H5::Attribute scalar_attribute(H5::H5Object& obj, const std::string& name,
 }
 
 void set_attr(H5::H5Object& obj, const std::string& name, const std::string& value) {
-  const H5::StrType type = vlen_utf8();
+  const H5::StrType type = h5::utf8();
   scalar_attribute(obj, name, type).write(type, value);
 }
 
@@ -152,7 +132,7 @@ void set_attr(H5::H5Object& obj, const std::string& name, double value) {
 }
 
 void set_attr(H5::H5Object& obj, const std::string& name, const std::vector<std::string>& values) {
-  const H5::StrType type = vlen_utf8();
+  const H5::StrType type = h5::utf8();
   const hsize_t n = values.size();
   H5::Attribute attr = fresh_attribute(obj, name, type, H5::DataSpace(1, &n));
   if (values.empty()) return;
@@ -162,80 +142,183 @@ void set_attr(H5::H5Object& obj, const std::string& name, const std::vector<std:
 }
 
 // ---------------------------------------------------------------------------------------------
-// Fixed-size arrays under /model.
+// The arrays under /model, declared once (kModelArrays): the writer and the reader follow the
+// same table.
 
+// The file's and the memory's type of an element.
 template <class T>
-void write_array(H5::Group& group, const std::string& name, const H5::PredType& file_type,
-                 const H5::PredType& mem_type, std::vector<hsize_t> dims, const T* data,
-                 const char* units = nullptr) {
+struct Element;
+template <>
+struct Element<double> {
+  static const H5::PredType& file() { return H5::PredType::IEEE_F64LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_DOUBLE; }
+};
+template <>
+struct Element<int> {
+  static const H5::PredType& file() { return H5::PredType::STD_I32LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_INT; }
+};
+template <>
+struct Element<signed char> {
+  static const H5::PredType& file() { return H5::PredType::STD_I8LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_SCHAR; }
+};
+template <>
+struct Element<std::uint16_t> {
+  static const H5::PredType& file() { return H5::PredType::STD_U16LE; }
+  static const H5::PredType& memory() { return H5::PredType::NATIVE_USHORT; }
+};
+
+struct ModelArray {
+  const char* name;   // dataset under /model
+  const char* units;  // its `units` attribute; nullptr: none (it depends on the constraint kind)
+  void (*write)(H5::Group& g, const ModelArray& a, const Model& m);
+  void (*read)(const H5::Group& g, const ModelArray& a, Model& m);
+};
+
+// Writes `values` as (rows,) when width is 0, else (rows, width).
+template <class T>
+void put_array(H5::Group& g, const ModelArray& a, const std::vector<T>& values, size_t width) {
+  std::vector<hsize_t> dims{width == 0 ? values.size() : values.size() / width};
+  if (width > 0) dims.push_back(width);
   const H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
-  H5::DataSet ds = group.createDataSet(name, file_type, space);
-  hsize_t count = 1;
-  for (hsize_t d : dims) count *= d;
-  if (count > 0) ds.write(data, mem_type);
-  if (units) set_attr(ds, "units", units);
+  H5::DataSet ds = g.createDataSet(a.name, Element<T>::file(), space);
+  if (!values.empty()) ds.write(values.data(), Element<T>::memory());
+  if (a.units != nullptr) set_attr(ds, "units", a.units);
 }
 
-template <size_t K>
-std::vector<int> flatten(const std::vector<std::array<int, K>>& rows) {
-  std::vector<int> out;
-  out.reserve(rows.size() * K);
-  for (const auto& r : rows) out.insert(out.end(), r.begin(), r.end());
-  return out;
+// Reads what put_array wrote (none when the dataset is absent); throws std::runtime_error when
+// it has another shape.
+template <class T>
+std::vector<T> take_array(const H5::Group& g, const ModelArray& a, size_t width) {
+  if (!g.nameExists(a.name)) return {};
+  const H5::DataSet ds = g.openDataSet(a.name);
+  const H5::DataSpace space = ds.getSpace();
+  const int rank = space.getSimpleExtentNdims();
+  hsize_t dims[2] = {0, 0};
+  if (rank == 1 || rank == 2) space.getSimpleExtentDims(dims);
+  if (rank != (width == 0 ? 1 : 2) || (width > 0 && dims[1] != width))
+    throw std::runtime_error(std::string("/model/") + a.name + " is not " +
+                             (width == 0 ? "1-D" : "(rows, " + std::to_string(width) + ")"));
+  std::vector<T> values(static_cast<size_t>(space.getSimpleExtentNpoints()));
+  if (!values.empty()) ds.read(values.data(), Element<T>::memory());
+  return values;
 }
+
+// A per-particle array (n).
+template <std::vector<double> Model::*Member>
+ModelArray per_particle(const char* name, const char* units) {
+  return {name, units,
+          [](H5::Group& g, const ModelArray& a, const Model& m) { put_array(g, a, m.*Member, 0); },
+          [](const H5::Group& g, const ModelArray& a, Model& m) { m.*Member = take_array<double>(g, a, 0); }};
+}
+
+// Cells of K particle indices (rows x K).
+template <size_t K, std::vector<std::array<int, K>> Model::*Member>
+ModelArray cells(const char* name) {
+  return {name, nullptr,
+          [](H5::Group& g, const ModelArray& a, const Model& m) {
+            std::vector<int> flat;
+            for (const auto& cell : m.*Member) flat.insert(flat.end(), cell.begin(), cell.end());
+            put_array(g, a, flat, K);
+          },
+          [](const H5::Group& g, const ModelArray& a, Model& m) {
+            const std::vector<int> flat = take_array<int>(g, a, K);
+            (m.*Member).resize(flat.size() / K);
+            for (size_t r = 0; r < (m.*Member).size(); ++r)
+              std::copy_n(flat.begin() + static_cast<long>(r * K), K, (m.*Member)[r].begin());
+          }};
+}
+
+// One field of every constraint, stored as T: a scalar (W = 0) or W values (an array field).
+template <class T, size_t W, auto Field>
+ModelArray per_constraint(const char* name, const char* units) {
+  return {name, units,
+          [](H5::Group& g, const ModelArray& a, const Model& m) {
+            std::vector<T> values;
+            for (const Constraint& c : m.constraints) {
+              if constexpr (W == 0)
+                values.push_back(static_cast<T>(c.*Field));
+              else
+                values.insert(values.end(), (c.*Field).begin(), (c.*Field).end());
+            }
+            put_array(g, a, values, W);
+          },
+          [](const H5::Group& g, const ModelArray& a, Model& m) {
+            const std::vector<T> values = take_array<T>(g, a, W);
+            const size_t rows = W == 0 ? values.size() : values.size() / W;
+            if (m.constraints.empty()) m.constraints.resize(rows);
+            if (rows != m.constraints.size())
+              throw std::runtime_error(std::string("/model/") + a.name + " has " + std::to_string(rows) +
+                                       " rows for " + std::to_string(m.constraints.size()) + " constraints");
+            for (size_t k = 0; k < rows; ++k) {
+              auto& field = m.constraints[k].*Field;
+              using F = std::remove_reference_t<decltype(field)>;
+              if constexpr (W > 0) {
+                std::copy_n(values.begin() + static_cast<long>(k * W), W, field.begin());
+              } else if constexpr (std::is_same_v<F, ConstraintKind>) {
+                if (values[k] < 0 || values[k] >= kConstraintKindCount)
+                  throw std::runtime_error(std::string("/model/") + a.name + " has an unknown kind " +
+                                           std::to_string(values[k]));
+                field = static_cast<ConstraintKind>(values[k]);
+              } else {
+                field = static_cast<F>(values[k]);
+              }
+            }
+          }};
+}
+
+const std::array kModelArrays = {
+    ModelArray{"rest_positions", "m",
+               [](H5::Group& g, const ModelArray& a, const Model& m) {
+                 const Points& x = m.rest_positions;
+                 put_array(g, a, std::vector<double>(x.data(), x.data() + x.size()), 3);
+               },
+               [](const H5::Group& g, const ModelArray& a, Model& m) {
+                 const std::vector<double> x = take_array<double>(g, a, 3);
+                 m.rest_positions.resize(static_cast<Eigen::Index>(x.size() / 3), 3);
+                 std::copy(x.begin(), x.end(), m.rest_positions.data());
+               }},
+    per_particle<&Model::inv_mass>("inv_mass", "1/kg"),
+    per_particle<&Model::radius>("radius", "m"),
+    ModelArray{"gravity", "m/s^2",
+               [](H5::Group& g, const ModelArray& a, const Model& m) {
+                 put_array(g, a, std::vector<double>{m.gravity[0], m.gravity[1], m.gravity[2]}, 0);
+               },
+               [](const H5::Group& g, const ModelArray& a, Model& m) {
+                 const std::vector<double> v = take_array<double>(g, a, 0);
+                 if (v.size() == 3) m.gravity = Vec3(v[0], v[1], v[2]);
+               }},
+    cells<2, &Model::edges>("edges"),
+    cells<3, &Model::triangles>("triangles"),
+    cells<4, &Model::tets>("tets"),
+    per_constraint<signed char, 0, &Constraint::kind>("constraint_kind", nullptr),
+    per_constraint<int, 4, &Constraint::particles>("constraint_particles", nullptr),
+    per_constraint<double, 0, &Constraint::rest>("constraint_rest", nullptr),
+    per_constraint<double, 0, &Constraint::compliance>("constraint_compliance", nullptr),
+    per_constraint<double, 0, &Constraint::stiffness>("constraint_stiffness", "1"),
+    // Damping is in s / (units of alpha): it depends on the kind, so no units attribute.
+    per_constraint<double, 0, &Constraint::damping>("constraint_damping", nullptr),
+    per_constraint<std::uint16_t, 0, &Constraint::group>("constraint_group", nullptr),
+};
 
 void write_model(H5::H5File& file, const Model& model) {
   H5::Group g = file.createGroup("/model");
-  const hsize_t n = static_cast<hsize_t>(model.particle_count());
-  const hsize_t m = model.constraints.size();
-  using P = H5::PredType;
-
-  write_array(g, "rest_positions", P::IEEE_F64LE, P::NATIVE_DOUBLE, {n, 3},
-              model.rest_positions.data(), "m");
-  write_array(g, "inv_mass", P::IEEE_F64LE, P::NATIVE_DOUBLE, {model.inv_mass.size()},
-              model.inv_mass.data(), "1/kg");
-  write_array(g, "radius", P::IEEE_F64LE, P::NATIVE_DOUBLE, {model.radius.size()},
-              model.radius.data(), "m");
-  write_array(g, "gravity", P::IEEE_F64LE, P::NATIVE_DOUBLE, {3}, model.gravity.data(), "m/s^2");
-  const auto edges = flatten(model.edges);
-  const auto triangles = flatten(model.triangles);
-  const auto tets = flatten(model.tets);
-  write_array(g, "edges", P::STD_I32LE, P::NATIVE_INT, {model.edges.size(), 2}, edges.data());
-  write_array(g, "triangles", P::STD_I32LE, P::NATIVE_INT, {model.triangles.size(), 3},
-              triangles.data());
-  write_array(g, "tets", P::STD_I32LE, P::NATIVE_INT, {model.tets.size(), 4}, tets.data());
-
-  std::vector<signed char> kind;
-  std::vector<int> particles;
-  std::vector<double> rest, compliance, stiffness, damping;
-  std::vector<unsigned short> group;
-  for (const Constraint& c : model.constraints) {
-    kind.push_back(static_cast<signed char>(c.kind));
-    particles.insert(particles.end(), c.particles.begin(), c.particles.end());
-    rest.push_back(c.rest);
-    compliance.push_back(c.compliance);
-    stiffness.push_back(c.stiffness);
-    damping.push_back(c.damping);
-    group.push_back(c.group);
+  for (const ModelArray& a : kModelArrays) {
+    a.write(g, a, model);
+    if (std::string_view(a.name) == "constraint_kind") {
+      H5::DataSet ds = g.openDataSet(a.name);
+      std::vector<std::string> names;
+      for (int k = 0; k < kConstraintKindCount; ++k)
+        names.emplace_back(to_string(static_cast<ConstraintKind>(k)));
+      set_attr(ds, "kind_names", names);
+    }
   }
-  write_array(g, "constraint_kind", P::STD_I8LE, P::NATIVE_SCHAR, {m}, kind.data());
-  {
-    H5::DataSet ds = g.openDataSet("constraint_kind");
-    std::vector<std::string> names;
-    for (int k = 0; k < kConstraintKindCount; ++k)
-      names.emplace_back(to_string(static_cast<ConstraintKind>(k)));
-    set_attr(ds, "kind_names", names);
-  }
-  write_array(g, "constraint_particles", P::STD_I32LE, P::NATIVE_INT, {m, 4}, particles.data());
-  write_array(g, "constraint_rest", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m}, rest.data());
-  write_array(g, "constraint_compliance", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m},
-              compliance.data());
-  write_array(g, "constraint_stiffness", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m},
-              stiffness.data(), "1");
-  // Damping is in s / (units of alpha): it depends on the kind, so no units attribute.
-  write_array(g, "constraint_damping", P::IEEE_F64LE, P::NATIVE_DOUBLE, {m}, damping.data());
-  write_array(g, "constraint_group", P::STD_U16LE, P::NATIVE_USHORT, {m}, group.data());
   set_attr(g, "group_names", model.group_names);
+}
+
+void read_model(const H5::Group& g, Model& m) {
+  for (const ModelArray& a : kModelArrays) a.read(g, a, m);
 }
 
 // Rows are appended, never read back: a dataset's chunk cache needs to hold the chunk being
@@ -438,7 +521,7 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
     set_attr(file, "wall_time", 0.0);
     set_attr(file, "exploded_step", -1LL);
     set_attr(file, "exploded_time", -1.0);
-    set_attr(file, "created", utc_now_iso8601());
+    set_attr(file, "created", utc_now());
     const BuildInfo& build = build_info();
     set_attr(file, "pbdbench_version", build.version);
     set_attr(file, "git_commit", build.git_commit);
@@ -636,67 +719,63 @@ void RunFileWriter::finish(RunStatus status, const std::string& reason, long ste
 
 namespace {
 
-std::vector<std::string> read_string_list(hid_t attr) {
-  std::vector<std::string> out;
-  const hid_t space = H5Aget_space(attr);
-  const hssize_t n = H5Sget_simple_extent_npoints(space);
-  const hid_t type = H5Tcopy(H5T_C_S1);
-  H5Tset_size(type, H5T_VARIABLE);
-  H5Tset_cset(type, H5T_CSET_UTF8);
-  if (n > 0) {
-    std::vector<char*> buf(static_cast<size_t>(n), nullptr);
-    if (H5Aread(attr, type, buf.data()) >= 0) {
-      for (char* s : buf) out.emplace_back(s ? s : "");
-      H5Dvlen_reclaim(type, space, H5P_DEFAULT, buf.data());
+// /frames: the times, and the positions and velocities of every frame or of the last.
+void read_frames(const H5::Group& g, RunFileParts::Frames which, bool velocities, RunFileData& data) {
+  if (g.nameExists("time")) data.frame_time = h5::read_doubles(g.openDataSet("time"));
+  for (auto [name, out] : {std::pair{"positions", &data.frames}, std::pair{"velocities", &data.velocities}}) {
+    if (!g.nameExists(name) || (out == &data.velocities && !velocities)) continue;
+    const H5::DataSet ds = g.openDataSet(name);
+    H5::DataSpace space = ds.getSpace();
+    hsize_t dims[3] = {0, 0, 0};
+    if (space.getSimpleExtentNdims() != 3) throw std::runtime_error(std::string("/frames/") + name + " is not 3-D");
+    space.getSimpleExtentDims(dims);
+    if (dims[2] != 3) throw std::runtime_error(std::string("/frames/") + name + " is not (F, n, 3)");
+    if (dims[0] != data.frame_time.size())
+      throw std::runtime_error(std::to_string(data.frame_time.size()) + " frame times for " +
+                               std::to_string(dims[0]) + " frames of " + name);
+    const hsize_t first = which == RunFileParts::Frames::Last && dims[0] > 0 ? dims[0] - 1 : 0;
+    const hsize_t count[3] = {dims[0] - first, dims[1], 3}, start[3] = {first, 0, 0};
+    if (count[0] == 0) continue;
+    std::vector<double> x(static_cast<size_t>(count[0] * count[1] * 3));
+    space.selectHyperslab(H5S_SELECT_SET, count, start);
+    const H5::DataSpace mem(3, count);
+    ds.read(x.data(), H5::PredType::NATIVE_DOUBLE, mem, space);
+    const hsize_t n = dims[1];
+    for (hsize_t f = 0; f < count[0]; ++f) {
+      Points p(static_cast<Eigen::Index>(n), 3);
+      std::copy(x.begin() + static_cast<long>(f * n * 3), x.begin() + static_cast<long>((f + 1) * n * 3), p.data());
+      out->push_back(std::move(p));
     }
   }
-  H5Tclose(type);
-  H5Sclose(space);
-  return out;
 }
 
 }  // namespace
 
 RunFileData read_run_file(const std::filesystem::path& path, bool with_series) {
+  RunFileParts parts;
+  parts.series = with_series;
+  return read_run_file(path, parts);
+}
+
+RunFileData read_run_file(const std::filesystem::path& path, const RunFileParts& parts) {
   H5::Exception::dontPrint();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) fail(path, "no such file");
   RunFileData data;
   try {
     H5::H5File file(path.string(), H5F_ACC_RDONLY);
-
-    const int nattrs = file.getNumAttrs();
-    for (int i = 0; i < nattrs; ++i) {
-      H5::Attribute attr = file.openAttribute(static_cast<unsigned>(i));
-      const std::string name = attr.getName();
-      if (attr.getSpace().getSimpleExtentNpoints() != 1) continue;
-      switch (attr.getTypeClass()) {
-        case H5T_STRING: {
-          std::string value;
-          attr.read(attr.getStrType(), value);
-          data.attributes[name] = value;
-          break;
-        }
-        case H5T_INTEGER:
-        case H5T_FLOAT: {
-          double value = 0.0;
-          attr.read(H5::PredType::NATIVE_DOUBLE, &value);
-          data.numbers[name] = value;
-          break;
-        }
-        default: break;
-      }
-    }
+    h5::read_attributes(file, data.attributes, data.numbers);
 
     if (file.nameExists("/model")) {
       H5::Group model = file.openGroup("/model");
-      if (model.attrExists("group_names")) {
-        H5::Attribute attr = model.openAttribute("group_names");
-        data.group_names = read_string_list(attr.getId());
+      if (model.attrExists("group_names")) data.group_names = h5::read_strings(model.openAttribute("group_names"));
+      if (parts.model) {
+        read_model(model, data.model);
+        data.model.group_names = data.group_names;
       }
     }
 
-    if (with_series && file.nameExists("/series")) {
+    if (parts.series && file.nameExists("/series")) {
       H5::Group group = file.openGroup("/series");
       const hsize_t count = group.getNumObjs();
       for (hsize_t i = 0; i < count; ++i) {
@@ -716,13 +795,68 @@ RunFileData read_run_file(const std::filesystem::path& path, bool with_series) {
           Points values(static_cast<Eigen::Index>(dims[0]), 3);
           if (dims[0] > 0) ds.read(values.data(), H5::PredType::NATIVE_DOUBLE);
           data.series3[name] = std::move(values);
+        } else {
+          continue;
+        }
+        if (ds.attrExists("units")) data.units[name] = h5::get_string(ds, "units");
+        if (ds.attrExists("doc")) data.docs[name] = h5::get_string(ds, "doc");
+        if (ds.attrExists("deterministic")) {
+          int deterministic = 1;
+          ds.openAttribute("deterministic").read(H5::PredType::NATIVE_INT, &deterministic);
+          if (deterministic == 0) data.nondeterministic.insert(name);
         }
       }
     }
+
+    if (parts.frames != RunFileParts::Frames::None && file.nameExists("/frames"))
+      read_frames(file.openGroup("/frames"), parts.frames, parts.velocities, data);
   } catch (const H5::Exception& e) {
     fail(path, "cannot read: " + h5_message(e));
+  } catch (const std::runtime_error& e) {
+    fail(path, e.what());
   }
   return data;
+}
+
+namespace {
+
+// 64-bit FNV-1a.
+struct Fnv {
+  std::uint64_t h = 1469598103934665603ull;
+  void add(const void* data, size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < n; ++i) {
+      h ^= p[i];
+      h *= 1099511628211ull;
+    }
+  }
+};
+
+}  // namespace
+
+std::string state_hash(const RunFileData& data) {
+  Fnv fnv;
+  for (const SeriesSpec& s : series_table()) {
+    if (!s.deterministic) continue;
+    const std::string name(s.name);
+    if (auto it = data.series.find(name); it != data.series.end())
+      fnv.add(it->second.data(), it->second.size() * sizeof(double));
+    if (auto it = data.series3.find(name); it != data.series3.end())
+      fnv.add(it->second.data(), static_cast<size_t>(it->second.size()) * sizeof(double));
+  }
+  if (!data.frames.empty()) {
+    const Points& last = data.frames.back();
+    fnv.add(last.data(), static_cast<size_t>(last.size()) * sizeof(double));
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv.h));
+  return hex;
+}
+
+std::string state_hash(const std::filesystem::path& path) {
+  RunFileParts parts;
+  parts.frames = RunFileParts::Frames::Last;
+  return state_hash(read_run_file(path, parts));
 }
 
 }  // namespace pbdbench

@@ -10,7 +10,8 @@
 //   /frames/time       (F,) s
 //   /frames/positions  (F, n, 3) m, chunked (1, n, 3), shuffle + gzip
 //   /frames/velocities (F, n, 3) m/s, the same (NaN rows where a frame came without them)
-//   /model/...         rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),
+//   /model/...         (declared once in run_file.cpp, kModelArrays, for the writer and the reader)
+//                      rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),
 //                      triangles (T,3), tets (K,4), constraint_kind (m), constraint_particles
 //                      (m,4), constraint_rest (m), constraint_compliance (m),
 //                      constraint_stiffness (m), constraint_damping (m), constraint_group (m);
@@ -29,6 +30,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -80,19 +82,49 @@ class RunFileWriter {
   std::unique_ptr<Impl> impl_;
 };
 
-// A run file read back (compare, sweep, summary).
+// A run file read back (compare, sweep, summary, claims, regress): what RunFileParts asked for.
 struct RunFileData {
   std::map<std::string, std::string> attributes;  // every string attribute of the root
   std::map<std::string, double> numbers;          // every numeric scalar attribute of the root
-  std::map<std::string, std::vector<double>> series;  // width-1 series
-  std::map<std::string, Points> series3;              // width-3 series
-  std::vector<std::string> group_names;
+  // Series (parts.series): every dataset under /series, by its width.
+  std::map<std::string, std::vector<double>> series;  // width-1 series, (rows) each
+  std::map<std::string, Points> series3;              // width-3 series, (rows x 3) each
+  std::map<std::string, std::string> units;           // series name -> its `units` attribute
+  std::map<std::string, std::string> docs;            // series name -> its `doc` attribute
+  std::set<std::string> nondeterministic;  // series whose `deterministic` attribute is 0
+  std::vector<std::string> group_names;    // /model's group_names (always read)
+  // Frames (parts.frames): /frames/time, and the positions and velocities of all frames or of
+  // the last one only (frame_time still has every frame's time).
+  std::vector<double> frame_time;  // (F) s
+  std::vector<Points> frames;      // (F or 1) frames of (n x 3) m
+  std::vector<Points> velocities;  // the same in m/s (NaN rows where a frame came without them)
+  // The model (parts.model): what /model stores (particles, gravity, topology, constraints and
+  // group names); the rest of a Model (colliders, FEM elements, attachments, motions,
+  // observables) is not in the file and stays empty.
+  Model model;
+
   std::string status() const;  // attributes["status"]
   // attributes["warnings"] split into lines (none for files written before warnings existed).
   std::vector<std::string> warnings() const;
 };
 
-// Throws std::runtime_error naming the path when the file cannot be read.
+struct RunFileParts {
+  bool series = true;
+  enum class Frames { None, Last, All } frames = Frames::None;
+  bool velocities = true;  // with the frames' positions, their velocities
+  bool model = false;
+};
+
+// Throws std::runtime_error naming the path when the file cannot be read, or when its model or
+// frames (when asked for) do not have the shapes above.
+RunFileData read_run_file(const std::filesystem::path& path, const RunFileParts& parts);
 RunFileData read_run_file(const std::filesystem::path& path, bool with_series = true);
+
+// The bitwise tier of regression (regress/regress.hpp): the 64-bit FNV-1a hash of every
+// deterministic series (in series_table() order) and of the last frame of positions, as 16 hex
+// digits. Needs data read with series and at least the last frame.
+std::string state_hash(const RunFileData& data);
+// The same of a file (reads what it needs).
+std::string state_hash(const std::filesystem::path& path);
 
 }  // namespace pbdbench

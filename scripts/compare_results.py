@@ -21,8 +21,10 @@ import re
 import sys
 import tomllib
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runfile  # noqa: E402
 
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*")
 
@@ -40,12 +42,12 @@ def wall_clock_series(run_dir):
     for root, _, files in os.walk(run_dir):
         for name in sorted(files):
             if name.endswith(".h5"):
-                with h5py.File(os.path.join(root, name), "r") as f:
-                    out = {"wall_time"}
-                    for s, ds in f["series"].items():
-                        if not int(ds.attrs.get("deterministic", 1)):
-                            out |= {s, s + ".x", s + ".y", s + ".z"}
-                    return out
+                run = runfile.load(os.path.join(root, name), frames=False, model=False)
+                out = {"wall_time"}
+                for s, deterministic in run.deterministic.items():
+                    if not deterministic:
+                        out |= {s, s + ".x", s + ".y", s + ".z"}
+                return out
     return {"wall_time", "wall_step"}
 
 
@@ -116,15 +118,16 @@ def compare_runs(local_dir, other_dir):
         if not os.path.exists(path):
             problems.append(f"{name}: missing from {other_dir}")
             continue
-        with h5py.File(os.path.join(local_dir, name), "r") as a, h5py.File(path, "r") as b:
-            for s, ds in a["series"].items():
-                if not int(ds.attrs.get("deterministic", 1)):
-                    continue
-                series += 1
-                if s not in b["series"] or not np.array_equal(ds[()], b["series"][s][()], equal_nan=True):
-                    problems.append(f"{name}: series {s} differs")
-            if a.attrs["status"] != b.attrs["status"]:
-                problems.append(f"{name}: status differs")
+        a = runfile.load(os.path.join(local_dir, name), frames=False, model=False)
+        b = runfile.load(path, frames=False, model=False)
+        for s, values in a.series.items():
+            if not a.deterministic[s]:
+                continue
+            series += 1
+            if s not in b.series or not np.array_equal(values, b.series[s], equal_nan=True):
+                problems.append(f"{name}: series {s} differs")
+        if a.attrs.get("status") != b.attrs.get("status"):
+            problems.append(f"{name}: status differs")
     print(f"{len(files)} run files, {series} deterministic series: "
           f"{'identical, bit for bit' if not problems else 'DIFFER'}")
     return problems

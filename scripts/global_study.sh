@@ -38,13 +38,10 @@ study_start=$EPOCHREALTIME
 
 # Whether a run file is complete (status attribute).
 complete() {
-  [[ -f "$1" ]] && "$py" - "$1" <<'EOF' 2>/dev/null
+  [[ -f "$1" ]] && PYTHONPATH="$root/scripts" "$py" - "$1" <<'EOF' 2>/dev/null
 import sys
-import h5py
-with h5py.File(sys.argv[1], "r") as f:
-    s = f.attrs.get("status", b"")
-    s = s.decode() if isinstance(s, bytes) else str(s)
-sys.exit(0 if s == "complete" else 1)
+import runfile
+sys.exit(0 if runfile.status_of(sys.argv[1]) == "complete" else 1)
 EOF
 }
 

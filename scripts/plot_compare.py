@@ -17,44 +17,33 @@ import sys
 import matplotlib
 
 matplotlib.use("Agg")
-import h5py  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runfile  # noqa: E402
 
-class CompareFileError(Exception):
-    """A compare file that is missing or not one; the message names the path."""
 
-
-def _text(value):
-    return value.decode("utf-8", errors="replace") if isinstance(value, bytes) else value
+# A compare file that is missing or not one; the message names the path.
+CompareFileError = runfile.RunFileError
 
 
 def load(path):
     """The compare file as a dict: attrs (root attributes), time, position_error_rms/max,
     series_time, diff (name -> array), observables (name -> array or float)."""
-    if not os.path.isfile(path):
-        raise CompareFileError(f"{path}: no such file")
+    c = runfile.load_compare(path)
     try:
-        with h5py.File(path, "r") as f:
-            if "compare" not in f:
-                raise CompareFileError(f"{path}: not a compare file (no /compare)")
-            g = f["compare"]
-            out = {
-                "attrs": {k: _text(v) for k, v in f.attrs.items()},
-                "time": g["time"][()],
-                "position_error_rms": g["position_error_rms"][()],
-                "position_error_max": g["position_error_max"][()],
-                "series_time": g["series_time"][()],
-                "diff": {k: v[()] for k, v in g["diff"].items()} if "diff" in g else {},
-                "observables": {},
-            }
-            if "observables" in g:
-                for k, v in g["observables"].items():
-                    out["observables"][k] = v[()] if v.shape else float(v[()])
-            return out
-    except (OSError, KeyError) as e:
-        raise CompareFileError(f"{path}: cannot read: {e}") from e
+        return {
+            "attrs": c.attrs,
+            "time": c.data["time"],
+            "position_error_rms": c.data["position_error_rms"],
+            "position_error_max": c.data["position_error_max"],
+            "series_time": c.data["series_time"],
+            "diff": c.diff,
+            "observables": c.observables,
+        }
+    except KeyError as e:
+        raise CompareFileError(f"{path}: cannot read: no /compare/{e.args[0]}") from e
 
 
 def _norm(v):

@@ -18,9 +18,11 @@ import sys
 import matplotlib
 
 matplotlib.use("Agg")
-import h5py  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runfile  # noqa: E402
 
 # Line style and legend label of each method of the file; unknown keys are drawn with defaults.
 STYLE = {
@@ -40,34 +42,15 @@ STYLE = {
 }
 
 
-class ConvergeFileError(Exception):
-    """A convergence file that is missing or not one; the message names the path."""
-
-
-def _text(value):
-    return value.decode("utf-8", errors="replace") if isinstance(value, bytes) else value
+# A convergence file that is missing or not one; the message names the path.
+ConvergeFileError = runfile.RunFileError
 
 
 def load(path):
     """The file as a dict: attrs (root attributes) and methods, a list of (key, dict with
     iteration, residual, time, optionally error and inner_iterations, and attrs) in file order."""
-    if not os.path.isfile(path):
-        raise ConvergeFileError(f"{path}: no such file")
-    try:
-        with h5py.File(path, "r") as f:
-            attrs = {k: _text(v) for k, v in f.attrs.items()}
-            if attrs.get("content") != "pbdbench converge":
-                raise ConvergeFileError(f"{path}: not a convergence file")
-            keys = [k for k in str(attrs.get("methods", "")).split(",") if k]
-            methods = []
-            for k in keys:
-                g = f[k]
-                m = {name: np.asarray(ds[()], dtype=float) for name, ds in g.items()}
-                m["attrs"] = {a: _text(v) for a, v in g.attrs.items()}
-                methods.append((k, m))
-            return {"attrs": attrs, "methods": methods}
-    except (OSError, KeyError) as e:
-        raise ConvergeFileError(f"{path}: cannot read: {e}") from e
+    c = runfile.load_converge(path)
+    return {"attrs": c.attrs, "methods": c.methods}
 
 
 def _positive(x, y):

@@ -6,26 +6,29 @@ and new metrics left out).
     plot_regress.py REGRESS.h5 OUT.png
 """
 import math
+import os
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-
-def strings(ds):
-    return [v.decode() if isinstance(v, bytes) else str(v) for v in ds[()]]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runfile  # noqa: E402
 
 
 def main(argv):
     if len(argv) != 3:
         print(__doc__, file=sys.stderr)
         return 2
-    with h5py.File(argv[1], "r") as f:
-        cases, metrics, verdicts = strings(f["case"]), strings(f["metric"]), strings(f["verdict"])
-        change, allowed = list(f["change"][()]), list(f["allowed"][()])
+    try:
+        columns = runfile.load_regress(argv[1]).columns
+    except runfile.RunFileError as e:
+        print(f"plot_regress.py: {e}", file=sys.stderr)
+        return 2
+    cases, metrics, verdicts = columns["case"], columns["metric"], columns["verdict"]
+    change, allowed = list(columns["change"]), list(columns["allowed"])
     labels, values, colors = [], [], []
     for c, m, v, d, a in zip(cases, metrics, verdicts, change, allowed):
         if v in ("ratio", "new"):

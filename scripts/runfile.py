@@ -1,5 +1,7 @@
 #!/usr/bin/python3
-"""Loads pbdbench run files (HDF5; the layout is in results/README.md).
+"""Loads pbdbench's HDF5 files: run files, compare, convergence and regression files (the
+layouts are in results/README.md and in runfile/*.hpp, which write them). Scripts read these
+files through this module, never with h5py directly.
 
     import runfile
     run = runfile.load("results/pendulum/xpbd.h5")
@@ -8,9 +10,17 @@
     run.config["solver"]["iterations"]
     runfile.label(run, ["solver.name", "solver.iterations"])   # "name=xpbd, iterations=10"
 
+    cmp = runfile.load_compare("out/compare.h5")     # pbdbench compare
+    cmp.data["position_error_max"], cmp.diff["total_energy"], cmp.observables
+    conv = runfile.load_converge("out/converge.h5")  # pbdbench converge
+    for key, method in conv.methods: method["residual"], method["attrs"]["converged"]
+    reg = runfile.load_regress("out/regress.h5")     # pbdbench regress
+    reg.rows[0]["case"], reg.columns["change"]
+    runfile.load_any(path)                           # whichever of the four it is
+
 Every dataset under /series is read, whatever its name, so a series added to the writer needs
-no change here. An incomplete file (a run still going, or killed) loads like any other: its
-series end at the writer's last flush.
+no change here (likewise the datasets of the other kinds). An incomplete file (a run still
+going, or killed) loads like any other: its series end at the writer's last flush.
 
 Depends on numpy and h5py only; runs under /usr/bin/python3 (Python 3.11: tomllib).
 """
@@ -20,12 +30,14 @@ import tomllib
 import h5py
 import numpy as np
 
-__all__ = ["Run", "RunFileError", "load", "load_viz", "label", "differing_keys", "config_value",
-           "format_value"]
+__all__ = ["Run", "Compare", "Converge", "Regress", "RunFileError", "load", "load_viz",
+           "load_compare", "load_converge", "load_regress", "load_any", "kind", "status_of",
+           "label", "differing_keys", "config_value", "format_value"]
 
 
 class RunFileError(Exception):
-    """A run file that is missing or cannot be read; the message names the path."""
+    """A file of the project that is missing, cannot be read or is not of the kind asked for;
+    the message names the path."""
 
 
 class Run:
@@ -227,5 +239,235 @@ def load_viz(path):
     try:
         with h5py.File(path, "r") as f:
             return {name: ds[()] for name, ds in f.items() if isinstance(ds, h5py.Dataset)}
+    except OSError as e:
+        raise RunFileError(f"{path}: cannot read: {e}") from e
+
+
+# ---------------------------------------------------------------------------------------------
+# The other kinds of file: compare (runfile/compare_file.hpp), convergence
+# (runfile/converge_file.hpp) and regression (runfile/regress_file.hpp).
+
+def _open(path):
+    """The file opened with h5py (to be used in a with statement). Raises RunFileError."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise RunFileError(f"{path}: no such file")
+    try:
+        return h5py.File(path, "r")
+    except OSError as e:
+        raise RunFileError(f"{path}: cannot open as HDF5: {e}") from e
+
+
+def _attrs(obj):
+    return {k: _attr_value(v) for k, v in obj.attrs.items()}
+
+
+def _dataset(ds):
+    """A dataset as a numpy array, a scalar dataset as a float, strings as a list of str."""
+    value = ds[()]
+    if ds.shape == ():
+        return _attr_value(value)
+    if ds.dtype.kind in "OSU":
+        return [_text(v) for v in value.tolist()]
+    return np.asarray(value)
+
+
+class Compare:
+    """A compare file (pbdbench compare), loaded.
+
+    path         the file
+    attrs        every root attribute
+    run, reference  the two runs' root attributes run_<key> / reference_<key>, by key (file,
+                 solver, scenario, status, config, git_commit)
+    warnings     attrs["warnings"], one string each
+    data         name -> array, every dataset directly under /compare (time,
+                 position_error_rms, position_error_max, series_time, run_frame,
+                 reference_frame, ... when present)
+    diff         series name -> (rows,) run - reference (|run - reference| for 3-vectors)
+    diff_units   series name -> its units
+    observables  name -> array, or float for the scalars (pendulum periods)
+    """
+
+    def __init__(self, path):
+        self.path = str(path)
+        self.attrs = {}
+        self.data = {}
+        self.diff = {}
+        self.diff_units = {}
+        self.observables = {}
+
+    def _prefixed(self, prefix):
+        return {k[len(prefix):]: v for k, v in self.attrs.items() if k.startswith(prefix)}
+
+    @property
+    def run(self):
+        return self._prefixed("run_")
+
+    @property
+    def reference(self):
+        return self._prefixed("reference_")
+
+    @property
+    def warnings(self):
+        text = self.attrs.get("warnings", "")
+        return [line for line in text.split("\n") if line] if isinstance(text, str) else []
+
+    def __repr__(self):
+        return f"Compare({self.path!r}, frames={len(self.data.get('time', []))})"
+
+
+def load_compare(path):
+    """Reads a compare file. Raises RunFileError naming the path when it is missing, unreadable
+    or not a compare file (no /compare)."""
+    path = os.fspath(path)
+    out = Compare(path)
+    try:
+        with _open(path) as f:
+            if "compare" not in f:
+                raise RunFileError(f"{path}: not a compare file (no /compare)")
+            out.attrs = _attrs(f)
+            g = f["compare"]
+            for name, obj in g.items():
+                if isinstance(obj, h5py.Dataset):
+                    out.data[name] = _dataset(obj)
+            if "diff" in g:
+                for name, ds in g["diff"].items():
+                    out.diff[name] = _dataset(ds)
+                    out.diff_units[name] = _text(ds.attrs.get("units", ""))
+            if "observables" in g:
+                for name, ds in g["observables"].items():
+                    out.observables[name] = _dataset(ds)
+    except (OSError, KeyError, ValueError) as e:
+        raise RunFileError(f"{path}: cannot read: {e}") from e
+    return out
+
+
+class Converge:
+    """A convergence file (pbdbench converge), loaded.
+
+    path     the file
+    attrs    every root attribute (scene, dt, tolerance, methods, machine, ...)
+    methods  [(key, method)] in the file's order (attrs["methods"]); method: name -> float
+             array (iteration, residual, time, and error or inner_iterations), plus "attrs" (the
+             group's attributes: method, iteration_kind, xpbd, converged, final_error)
+    """
+
+    def __init__(self, path):
+        self.path = str(path)
+        self.attrs = {}
+        self.methods = []
+
+    def method(self, key):
+        """The method of this key, or None."""
+        return next((m for k, m in self.methods if k == key), None)
+
+    def __repr__(self):
+        return f"Converge({self.path!r}, methods={[k for k, _ in self.methods]})"
+
+
+def load_converge(path):
+    """Reads a convergence file. Raises RunFileError naming the path when it is missing,
+    unreadable or not a convergence file."""
+    path = os.fspath(path)
+    out = Converge(path)
+    try:
+        with _open(path) as f:
+            out.attrs = _attrs(f)
+            if out.attrs.get("content") != "pbdbench converge":
+                raise RunFileError(f"{path}: not a convergence file")
+            for key in [k for k in str(out.attrs.get("methods", "")).split(",") if k]:
+                g = f[key]
+                m = {name: np.asarray(ds[()], dtype=float) for name, ds in g.items()}
+                m["attrs"] = _attrs(g)
+                out.methods.append((key, m))
+    except (OSError, KeyError, ValueError) as e:
+        raise RunFileError(f"{path}: cannot read: {e}") from e
+    return out
+
+
+# The regression file's columns, in its order: strings, then numbers.
+REGRESS_TEXT_COLUMNS = ("case", "metric", "units", "verdict")
+REGRESS_NUMBER_COLUMNS = ("baseline", "now", "change", "allowed")
+
+
+class Regress:
+    """A regression file (regress.h5 of pbdbench regress), loaded.
+
+    path     the file
+    columns  name -> list of str (case, metric, units, verdict) or float array (baseline, now,
+             change, allowed), one entry per row
+    rows     one dict per (case, metric): the same names -> one value
+    """
+
+    def __init__(self, path):
+        self.path = str(path)
+        self.columns = {}
+
+    @property
+    def rows(self):
+        n = len(self.columns.get("case", []))
+        return [{k: v[i] if isinstance(v, list) else float(v[i]) for k, v in self.columns.items()}
+                for i in range(n)]
+
+    def __repr__(self):
+        return f"Regress({self.path!r}, rows={len(self.columns.get('case', []))})"
+
+
+def load_regress(path):
+    """Reads a regression file. Raises RunFileError naming the path when it is missing,
+    unreadable, or a column is missing or of another length."""
+    path = os.fspath(path)
+    out = Regress(path)
+    try:
+        with _open(path) as f:
+            for name in REGRESS_TEXT_COLUMNS + REGRESS_NUMBER_COLUMNS:
+                if name not in f:
+                    raise RunFileError(f"{path}: not a regression file (no column {name})")
+                ds = f[name]
+                out.columns[name] = ([_text(v) for v in ds[()].tolist()]
+                                     if name in REGRESS_TEXT_COLUMNS
+                                     else np.asarray(ds[()], dtype=float))
+            lengths = {len(v) for v in out.columns.values()}
+            if len(lengths) > 1:
+                raise RunFileError(f"{path}: the columns differ in length ({sorted(lengths)})")
+    except (OSError, KeyError, ValueError) as e:
+        raise RunFileError(f"{path}: cannot read: {e}") from e
+    return out
+
+
+def kind(path):
+    """"run", "compare", "converge" or "regress": which of the project's files this is. Raises
+    RunFileError when it is none of them."""
+    path = os.fspath(path)
+    try:
+        with _open(path) as f:
+            content = _text(f.attrs.get("content", ""))
+            if content == "pbdbench converge":
+                return "converge"
+            if content == "pbdbench compare" or "compare" in f:
+                return "compare"
+            if "series" in f or "status" in f.attrs:
+                return "run"
+            if all(name in f for name in REGRESS_TEXT_COLUMNS + REGRESS_NUMBER_COLUMNS):
+                return "regress"
+    except OSError as e:
+        raise RunFileError(f"{path}: cannot read: {e}") from e
+    raise RunFileError(f"{path}: not a pbdbench file (run, compare, converge or regress)")
+
+
+def load_any(path, **options):
+    """Loads whichever kind of file this is (kind()); options go to load() for a run file."""
+    return {"run": lambda: load(path, **options), "compare": lambda: load_compare(path),
+            "converge": lambda: load_converge(path), "regress": lambda: load_regress(path)}[
+        kind(path)]()
+
+
+def status_of(path):
+    """A run file's status attribute alone (cheap: no series read); "" when it has none.
+    Raises RunFileError."""
+    path = os.fspath(path)
+    try:
+        with _open(path) as f:
+            return str(_attr_value(f.attrs.get("status", "")))
     except OSError as e:
         raise RunFileError(f"{path}: cannot read: {e}") from e

@@ -5,15 +5,17 @@ time and its largest max over time, and the gap in the scene's observable where 
 
     summarize_compare.py DIR [DIR ...]
 
-Depends on numpy and h5py only; runs under /usr/bin/python3.
+Depends on numpy and h5py only (through runfile.py); runs under /usr/bin/python3.
 """
 import glob
 import math
 import os
 import sys
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import runfile  # noqa: E402
 
 OBSERVABLES = [  # (name in /compare/observables, label, units)
     ("support_force_relative_gap", "support force gap", "rel"),
@@ -44,32 +46,30 @@ def text(v):
 
 
 def summarize(path):
-    with h5py.File(path, "r") as f:
-        a = f.attrs
-        c = f["compare"]
-        rms = np.asarray(c["position_error_rms"])
-        mx = np.asarray(c["position_error_max"])
-        t = np.asarray(c["time"])
-        obs = []
-        if "observables" in c:
-            for name, lab, units in OBSERVABLES:
-                if name in c["observables"]:
-                    v = np.atleast_1d(np.asarray(c["observables"][name]))
-                    v = v[np.isfinite(v)]
-                    if v.size:
-                        obs.append(f"{lab} {v[-1]:.3g} {units}")
-        status = text(a["run_status"])
-        return {
-            "scene": text(a["run_scenario"]),
-            "run": label(text(a["run_config"]), text(a["run_solver"])),
-            "reference": text(a["reference_solver"]),
-            "status": status,
-            "t": t[-1] if t.size else math.nan,
-            "rms": rms[-1] if rms.size else math.nan,
-            "max": mx[-1] if mx.size else math.nan,
-            "peak": np.nanmax(mx) if mx.size else math.nan,
-            "obs": "; ".join(obs),
-        }
+    c = runfile.load_compare(path)
+    a = c.attrs
+    rms = np.asarray(c.data["position_error_rms"])
+    mx = np.asarray(c.data["position_error_max"])
+    t = np.asarray(c.data["time"])
+    obs = []
+    for name, lab, units in OBSERVABLES:
+        if name in c.observables:
+            v = np.atleast_1d(np.asarray(c.observables[name], dtype=float))
+            v = v[np.isfinite(v)]
+            if v.size:
+                obs.append(f"{lab} {v[-1]:.3g} {units}")
+    status = text(a["run_status"])
+    return {
+        "scene": text(a["run_scenario"]),
+        "run": label(text(a["run_config"]), text(a["run_solver"])),
+        "reference": text(a["reference_solver"]),
+        "status": status,
+        "t": t[-1] if t.size else math.nan,
+        "rms": rms[-1] if rms.size else math.nan,
+        "max": mx[-1] if mx.size else math.nan,
+        "peak": np.nanmax(mx) if mx.size else math.nan,
+        "obs": "; ".join(obs),
+    }
 
 
 def main(argv):
@@ -84,7 +84,7 @@ def main(argv):
         for p in files:
             try:
                 rows.append(summarize(p))
-            except (OSError, KeyError) as e:
+            except (OSError, KeyError, runfile.RunFileError) as e:
                 print(f"summarize_compare.py: cannot read {p}: {e}", file=sys.stderr)
                 return 1
     head = ("scene", "run", "vs", "status", "t (s)", "RMS err (m)", "max err (m)", "peak max (m)", "observable")

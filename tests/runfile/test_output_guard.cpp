@@ -15,20 +15,14 @@
 #include "runfile/run_file.hpp"
 #include "runfile/shadow_file.hpp"
 #include "tests/runfile/fixture_model.hpp"
+#include "tests/runfile/test_support.hpp"
 
 namespace pbdbench {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(PBDBENCH_BINARY_DIR) / "tests" / "runfile" / "tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+using test::temp_dir;
 
 RunHeader header(const fs::path& scenario = "scenarios/fixture.toml") {
   RunHeader h;

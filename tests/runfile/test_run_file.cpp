@@ -18,21 +18,14 @@
 
 #include "runfile/build_info.hpp"
 #include "tests/runfile/fixture_model.hpp"
+#include "tests/runfile/test_support.hpp"
 
 namespace pbdbench {
 namespace {
 
 namespace fs = std::filesystem;
 
-// A fresh directory for the current test's files, under the build tree.
-fs::path temp_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(PBDBENCH_BINARY_DIR) / "tests" / "runfile" / "tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+using test::temp_dir;
 
 RunHeader fixture_header() {
   RunHeader h;
@@ -606,6 +599,114 @@ TEST(runfile_file, ModelWithoutConstraintsOrParticles) {
   EXPECT_EQ(dims_of(f.id, "/model/constraint_kind"), (std::vector<hsize_t>{0}));
   EXPECT_EQ(dims_of(f.id, "/model/edges"), (std::vector<hsize_t>{0, 2}));
   EXPECT_EQ(dims_of(f.id, "/frames/time"), (std::vector<hsize_t>{1}));
+}
+
+
+// The complete reader: series with units, docs and the deterministic flag, frames with
+// velocities (all of them, or the last), the model, read back as written.
+TEST(runfile_file, CompleteReaderRoundTrip) {
+  const fs::path path = temp_dir() / "run.h5";
+  const Model m = test::fixture_model();
+  {
+    RunFileWriter w(path, fixture_header(), m, 0.0);
+    append_rows(w, m, 0, 5);
+    for (long fr = 0; fr < 3; ++fr) {
+      const Points v = test::fixture_frame(m, 10 + fr);  // any distinct values
+      w.append_frame(0.5 * static_cast<double>(fr), test::fixture_frame(m, fr), fr == 1 ? nullptr : &v);
+    }
+    w.finish(RunStatus::Complete, "done", 4, 1.0);
+  }
+  RunFileParts parts;
+  parts.frames = RunFileParts::Frames::All;
+  parts.model = true;
+  const RunFileData d = read_run_file(path, parts);
+
+  for (const SeriesSpec& spec : series_table()) {
+    const std::string name(spec.name);
+    EXPECT_EQ(d.units.at(name), spec.units) << name;
+    EXPECT_EQ(d.docs.at(name), spec.doc) << name;
+    EXPECT_EQ(d.nondeterministic.count(name), spec.deterministic ? 0u : 1u) << name;
+  }
+  EXPECT_EQ(d.units.at("constraint_error_max_stretch"), "1");
+
+  EXPECT_EQ(d.frame_time, (std::vector<double>{0.0, 0.5, 1.0}));
+  ASSERT_EQ(d.frames.size(), 3u);
+  ASSERT_EQ(d.velocities.size(), 3u);
+  for (long fr = 0; fr < 3; ++fr) {
+    const size_t i = static_cast<size_t>(fr);
+    EXPECT_EQ(d.frames[i], test::fixture_frame(m, fr)) << fr;
+    if (fr == 1)
+      EXPECT_TRUE(d.velocities[i].array().isNaN().all()) << "a frame without velocities";
+    else
+      EXPECT_EQ(d.velocities[i], test::fixture_frame(m, 10 + fr)) << fr;
+  }
+
+  const Model& r = d.model;
+  EXPECT_EQ(r.rest_positions, m.rest_positions);
+  EXPECT_EQ(r.inv_mass, m.inv_mass);
+  EXPECT_EQ(r.radius, m.radius);
+  EXPECT_EQ(r.gravity, m.gravity);
+  EXPECT_EQ(r.edges, m.edges);
+  EXPECT_EQ(r.triangles, m.triangles);
+  EXPECT_EQ(r.tets, m.tets);
+  EXPECT_EQ(r.group_names, m.group_names);
+  ASSERT_EQ(r.constraints.size(), m.constraints.size());
+  for (size_t k = 0; k < m.constraints.size(); ++k) {
+    const Constraint &a = r.constraints[k], &b = m.constraints[k];
+    EXPECT_EQ(a.kind, b.kind) << k;
+    EXPECT_EQ(a.particles, b.particles) << k;
+    EXPECT_EQ(a.rest, b.rest) << k;
+    EXPECT_EQ(a.compliance, b.compliance) << k;
+    EXPECT_EQ(a.stiffness, b.stiffness) << k;
+    EXPECT_EQ(a.damping, b.damping) << k;
+    EXPECT_EQ(a.group, b.group) << k;
+  }
+
+  // The last frame only; nothing of the model or frames unless asked for.
+  RunFileParts last;
+  last.frames = RunFileParts::Frames::Last;
+  last.velocities = false;
+  const RunFileData l = read_run_file(path, last);
+  EXPECT_EQ(l.frame_time.size(), 3u);
+  ASSERT_EQ(l.frames.size(), 1u);
+  EXPECT_EQ(l.frames[0], test::fixture_frame(m, 2));
+  EXPECT_TRUE(l.velocities.empty());
+  EXPECT_EQ(l.model.rest_positions.rows(), 0);
+  const RunFileData plain = read_run_file(path);
+  EXPECT_TRUE(plain.frames.empty());
+  EXPECT_TRUE(plain.frame_time.empty());
+  EXPECT_TRUE(plain.model.constraints.empty());
+  EXPECT_EQ(plain.group_names, m.group_names);
+}
+
+// The state hash: 16 hex digits that change with a deterministic series or the last frame,
+// and not with the wall-clock timings or an earlier frame.
+TEST(runfile_file, StateHash) {
+  const fs::path dir = temp_dir();
+  const Model m = test::fixture_model();
+  auto write = [&](const std::string& name, double wall, long last_frame, double energy) {
+    const fs::path path = dir / name;
+    RunFileWriter w(path, fixture_header(), m, 0.0);
+    for (long r = 0; r < 4; ++r) {
+      Sample s = test::fixture_sample(r, m.group_names.size());
+      s.kinetic_energy += energy;
+      const StepReport rep = test::fixture_report(r);
+      w.append(SeriesRow{0.01 * static_cast<double>(r), r, wall * static_cast<double>(r + 1), &s, &rep});
+    }
+    w.append_frame(0.0, test::fixture_frame(m, wall > 1.0 ? 7 : 0));
+    w.append_frame(0.03, test::fixture_frame(m, last_frame));
+    w.finish(RunStatus::Complete, "done", 3, 1.0);
+    return path;
+  };
+  const std::string a = state_hash(write("a.h5", 1e-5, 1, 0.0));
+  EXPECT_TRUE(std::regex_match(a, std::regex("[0-9a-f]{16}"))) << a;
+  EXPECT_EQ(state_hash(write("wall.h5", 2.0, 1, 0.0)), a) << "wall_step and the first frame are not hashed";
+  EXPECT_NE(state_hash(write("frame.h5", 1e-5, 2, 0.0)), a);
+  EXPECT_NE(state_hash(write("energy.h5", 1e-5, 1, 1e-12)), a);
+  // The same from data read with every frame (the hash takes the last).
+  RunFileParts all;
+  all.frames = RunFileParts::Frames::All;
+  EXPECT_EQ(state_hash(read_run_file(dir / "a.h5", all)), a);
 }
 
 }  // namespace

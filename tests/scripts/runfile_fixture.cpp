@@ -7,6 +7,9 @@
 //                          [--no-volume 1]
 //   runfile_fixture --list-series    every series of such a file: name, tab, units
 //   runfile_fixture --markdown       series_markdown(), for results/README.md
+//   runfile_fixture --compare OUT.h5 | --converge OUT.h5 | --regress OUT.h5
+//                                    a small file of that kind, by runfile/'s writer, with the
+//                                    values that tests/scripts/test_scripts.py expects
 //
 // --status exploded: the positions become NaN at 3/4 of the rows and the run stops there.
 // --status incomplete: the writer is destroyed without finish(). --status crashed: the process
@@ -20,6 +23,9 @@
 
 #include "core/state.hpp"
 #include "metrics/metrics.hpp"
+#include "runfile/compare_file.hpp"
+#include "runfile/converge_file.hpp"
+#include "runfile/regress_file.hpp"
 #include "runfile/run_file.hpp"
 #include "runfile/series.hpp"
 #include "tests/runfile/fixture_model.hpp"
@@ -31,8 +37,71 @@ int usage(const char* argv0) {
   std::cerr << "usage: " << argv0
             << " OUT.h5 [--solver NAME] [--iterations N] [--substeps N] [--rows N]"
                " [--status complete|exploded|failed|incomplete|crashed] [--no-volume 1]\n"
-            << "       " << argv0 << " --list-series | --markdown\n";
+            << "       " << argv0 << " --list-series | --markdown\n"
+            << "       " << argv0 << " --compare OUT.h5 | --converge OUT.h5 | --regress OUT.h5\n";
   return 2;
+}
+
+// Two frames (the second interpolated), three series rows, one diff of each width, a tip
+// displacement and a pendulum.
+void write_compare(const std::string& path) {
+  CompareResult r;
+  r.run = {{"file", "run.h5"}, {"solver", "xpbd"}, {"scenario", "fixture"}, {"status", "complete"}};
+  r.reference = {{"file", "ref.h5"}, {"solver", "ref-bdf"}, {"scenario", "fixture"}, {"status", "complete"}};
+  r.until = 1.0;
+  r.frames = {{0.0, 0.5}, {0, 1}, {0, 0}, {0, 1}, {0.0, 0.5}, 1};
+  r.position_error_rms = {0.0, 1e-3};
+  r.position_error_max = {0.0, 2e-3};
+  r.rows = {{0.0, 0.25, 0.5}, {0, 1, 2}, {0, 1, 2}, {0, 1, 2}, {0.0, 0.0, 0.0}, 3};
+  r.diff = {{"total_energy", {0.0, 0.1, 0.2}}, {"linear_momentum", {0.0, 1.0, 2.0}}};
+  r.diff_width = {{"total_energy", 1}, {"linear_momentum", 3}};
+  r.diff_units = {{"total_energy", "J"}, {"linear_momentum", "kg m/s"}};
+  Points tip(3, 3);
+  tip << 0, 0, 0, 0, -0.1, 0, 0, -0.2, 0;
+  r.tip_displacement = {true, tip, tip, {0.0, 0.0, 0.0}, {}};
+  r.pendulum = true;
+  r.pendulum_angle_run = {0.1, 0.2, 0.3};
+  r.pendulum_angle_reference = {0.1, 0.2, 0.3};
+  r.period_run = 1.5;
+  r.period_reference = 1.6;
+  r.periods_run = 2;
+  r.periods_reference = 2;
+  r.period_relative_difference = -0.1 / 1.6;
+  r.warnings = {"first warning", "second warning"};
+  write_compare_file(path, r);
+}
+
+// An xpbd order and a global solver.
+void write_converge(const std::string& path) {
+  ConvergeResult r;
+  r.scene = "fixture";
+  r.dt = 0.01;
+  r.tolerance = 1e-10;
+  r.start_residual = 0.5;
+  r.machine = "fixture CPU";
+  ConvergeMethod x;
+  x.key = "xpbd-sequential";
+  x.iteration_kind = "sweeps";
+  x.xpbd = true;
+  x.iteration = {1, 2, 3};
+  x.residual = {1e-1, 1e-2, 1e-3};
+  x.time = {1e-4, 2e-4, 3e-4};
+  x.error = {0.4, 0.2, 0.1};
+  ConvergeMethod g;
+  g.key = "global-cholmod";
+  g.iteration_kind = "Newton iterations";
+  g.iteration = {0, 1};
+  g.residual = {0.5, 1e-12};
+  g.time = {0.0, 1e-3};
+  g.inner_iterations = {0, 0};
+  g.converged = true;
+  r.methods = {x, g};
+  write_converge_file(path, r);
+}
+
+void write_regress(const std::string& path) {
+  write_regress_file(path, {{"chain", "energy_drift", "J", "same", 1.5, 1.5, 0.0, 1e-9},
+                            {"cloth", "wall_time", "s", "ratio", 2.0, 3.0, 1.5, 0.0}});
 }
 
 int run(int argc, char** argv) {
@@ -41,6 +110,12 @@ int run(int argc, char** argv) {
   Model model = test::fixture_model();
   if (first == "--markdown") {
     std::cout << series_markdown();
+    return 0;
+  }
+  if (argc == 3 && (first == "--compare" || first == "--converge" || first == "--regress")) {
+    if (first == "--compare") write_compare(argv[2]);
+    if (first == "--converge") write_converge(argv[2]);
+    if (first == "--regress") write_regress(argv[2]);
     return 0;
   }
   if (first == "--list-series") {

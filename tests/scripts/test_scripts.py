@@ -146,6 +146,84 @@ class LoaderTest(unittest.TestCase):
             runfile.load(junk)
 
 
+class OtherKindsTest(unittest.TestCase):
+    """runfile.py loads every kind of file the project writes: compare, convergence and
+    regression files written by runfile/'s C++ writers (runfile_fixture --compare etc.)."""
+
+    @classmethod
+    def setUpClass(cls):
+        d = os.path.join(TMP, "kinds")
+        os.makedirs(d, exist_ok=True)
+        cls.files = {}
+        for kind in ("compare", "converge", "regress"):
+            path = os.path.join(d, f"{kind}.h5")
+            subprocess.run([FIXTURE, f"--{kind}", path], check=True)
+            cls.files[kind] = path
+        cls.files["run"] = fixture(os.path.join(d, "run.h5"), "--rows", 20)
+
+    def test_compare(self):
+        c = runfile.load_compare(self.files["compare"])
+        self.assertEqual(c.attrs["content"], "pbdbench compare")
+        self.assertEqual(c.run["solver"], "xpbd")
+        self.assertEqual(c.reference["solver"], "ref-bdf")
+        self.assertEqual(c.warnings, ["first warning", "second warning"])
+        np.testing.assert_array_equal(c.data["time"], [0.0, 0.5])
+        np.testing.assert_array_equal(c.data["position_error_max"], [0.0, 2e-3])
+        np.testing.assert_array_equal(c.data["reference_frame"], [[0, 0], [0, 1]])
+        np.testing.assert_array_equal(c.data["series_time"], [0.0, 0.25, 0.5])
+        np.testing.assert_array_equal(c.diff["total_energy"], [0.0, 0.1, 0.2])
+        self.assertEqual(c.diff_units["linear_momentum"], "kg m/s")
+        self.assertEqual(c.observables["tip_displacement_run"].shape, (3, 3))
+        self.assertEqual(c.observables["pendulum_period_run"], 1.5)
+        self.assertEqual(c.observables["pendulum_periods_run"], 2.0)
+        self.assertNotIn("support_force_run", c.observables)
+
+    def test_converge(self):
+        c = runfile.load_converge(self.files["converge"])
+        self.assertEqual([k for k, _ in c.methods], ["xpbd-sequential", "global-cholmod"])
+        self.assertEqual(c.attrs["machine"], "fixture CPU")
+        x = c.method("xpbd-sequential")
+        np.testing.assert_array_equal(x["iteration"], [1, 2, 3])
+        np.testing.assert_array_equal(x["error"], [0.4, 0.2, 0.1])
+        self.assertEqual(x["attrs"]["xpbd"], 1)
+        g = c.method("global-cholmod")
+        self.assertEqual(g["attrs"]["converged"], 1)
+        self.assertIn("inner_iterations", g)
+        self.assertNotIn("error", g)
+        self.assertIsNone(c.method("global-ceres"))
+
+    def test_regress(self):
+        r = runfile.load_regress(self.files["regress"])
+        self.assertEqual(r.columns["case"], ["chain", "cloth"])
+        self.assertEqual(r.columns["verdict"], ["same", "ratio"])
+        np.testing.assert_array_equal(r.columns["change"], [0.0, 1.5])
+        self.assertEqual(r.rows[1], {"case": "cloth", "metric": "wall_time", "units": "s",
+                                     "verdict": "ratio", "baseline": 2.0, "now": 3.0,
+                                     "change": 1.5, "allowed": 0.0})
+
+    def test_kind_and_load_any(self):
+        expected = {"run": runfile.Run, "compare": runfile.Compare, "converge": runfile.Converge,
+                    "regress": runfile.Regress}
+        for kind, path in self.files.items():
+            self.assertEqual(runfile.kind(path), kind)
+            self.assertIsInstance(runfile.load_any(path), expected[kind])
+        self.assertEqual(runfile.status_of(self.files["run"]), "complete")
+
+    def test_wrong_kind_and_missing_files_raise_naming_the_path(self):
+        run = self.files["run"]
+        with self.assertRaisesRegex(runfile.RunFileError, "run.h5.*not a compare file"):
+            runfile.load_compare(run)
+        with self.assertRaisesRegex(runfile.RunFileError, "run.h5.*not a convergence file"):
+            runfile.load_converge(run)
+        with self.assertRaisesRegex(runfile.RunFileError, "run.h5.*not a regression file"):
+            runfile.load_regress(run)
+        missing = os.path.join(TMP, "kinds", "missing.h5")
+        for load in (runfile.load_compare, runfile.load_converge, runfile.load_regress,
+                     runfile.kind, runfile.status_of):
+            with self.assertRaisesRegex(runfile.RunFileError, "missing.h5"):
+                load(missing)
+
+
 class PlotRunsTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):

@@ -1,0 +1,119 @@
+#include "runfile/layout.hpp"
+
+namespace pbdbench::layout {
+
+void write_array(H5::Group& g, const std::string& name, const Array& a, const std::string& units,
+                 const std::string& doc) {
+  if (const auto* pairs = std::get_if<IndexPairs>(&a)) {
+    const hsize_t dims[2] = {pairs->size(), 2};
+    H5::DataSet ds = g.createDataSet(name, H5::PredType::STD_I64LE, H5::DataSpace(2, dims));
+    if (!pairs->empty()) ds.write(pairs->data(), H5::PredType::NATIVE_LLONG);
+    h5::document(ds, units, doc);
+  } else if (const auto* scalar = std::get_if<double>(&a)) {
+    h5::write_scalar(g, name, *scalar, units, doc);
+  } else {
+    std::visit(
+        [&](const auto& v) {
+          if constexpr (!std::is_same_v<std::decay_t<decltype(v)>, IndexPairs> &&
+                        !std::is_same_v<std::decay_t<decltype(v)>, double>)
+            h5::write(g, name, v, units, doc);
+        },
+        a);
+  }
+}
+
+Array read_array(const H5::DataSet& ds) {
+  const H5::DataSpace space = ds.getSpace();
+  const int rank = space.getSimpleExtentNdims();
+  std::vector<hsize_t> dims(static_cast<size_t>(rank), 0);
+  if (rank > 0) space.getSimpleExtentDims(dims.data());
+  const bool integer = ds.getTypeClass() == H5T_INTEGER;
+  if (rank == 0) return h5::read_doubles(ds).at(0);
+  if (rank == 1) {
+    if (integer) return h5::read_integers(ds);
+    return h5::read_doubles(ds);
+  }
+  if (rank == 2 && dims[1] == 2 && integer) {
+    const std::vector<long long> flat = h5::read_integers(ds);
+    IndexPairs pairs(dims[0]);
+    for (size_t k = 0; k < pairs.size(); ++k) pairs[k] = {flat[2 * k], flat[2 * k + 1]};
+    return pairs;
+  }
+  return h5::read_points(ds, ds.getObjName());
+}
+
+H5::Group subgroup(H5::Group& g, const std::string& path) {
+  return g.nameExists(path) ? g.openGroup(path) : g.createGroup(path);
+}
+
+}  // namespace pbdbench::layout
+
+#include <stdexcept>
+
+#include "runfile/build_info.hpp"
+#include "runfile/utc_now.hpp"
+
+namespace pbdbench::layout {
+
+void write_provenance(H5::H5Object& obj) {
+  const BuildInfo& b = build_info();
+  h5::put(obj, "created", utc_now());
+  h5::put(obj, "pbdbench_version", std::string(b.version));
+  h5::put(obj, "git_commit", std::string(b.git_commit));
+  h5::put(obj, "compiler", std::string(b.compiler));
+  h5::put(obj, "build_type", std::string(b.build_type));
+  h5::put(obj, "cxx_flags", std::string(b.cxx_flags));
+}
+
+std::string join_lines(const std::vector<std::string>& lines) {
+  std::string text;
+  for (const std::string& l : lines) text += (text.empty() ? "" : "\n") + l;
+  return text;
+}
+
+std::vector<std::string> split_lines(const std::string& text) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    if (end > start) out.push_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
+}
+
+void write_file(const std::filesystem::path& path, const std::string& kind,
+                const std::function<void(H5::H5File&)>& write) {
+  const std::string what = kind + " file " + path.string() + ": ";
+  H5::Exception::dontPrint();
+  try {
+    if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
+    H5::H5File file(path.string(), H5F_ACC_TRUNC);
+    write(file);
+  } catch (const H5::Exception& e) {
+    throw std::runtime_error(what + "cannot write: " + h5::message(e));
+  } catch (const std::filesystem::filesystem_error& e) {
+    throw std::runtime_error(what + e.what());
+  }
+}
+
+void read_file(const std::filesystem::path& path, const std::string& kind, const std::string& content,
+               const std::function<void(const H5::H5File&)>& read) {
+  const std::string what = kind + " file " + path.string() + ": ";
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw std::runtime_error(what + "no such file");
+  H5::Exception::dontPrint();
+  try {
+    const H5::H5File file(path.string(), H5F_ACC_RDONLY);
+    const std::string found = h5::get_string(file, "content");
+    if (!content.empty() && found != content)
+      throw std::runtime_error(what + "not a " + kind + " file (content \"" + found + "\", not \"" +
+                               content + "\")");
+    read(file);
+  } catch (const H5::Exception& e) {
+    throw std::runtime_error(what + "cannot read: " + h5::message(e));
+  }
+}
+
+}  // namespace pbdbench::layout
