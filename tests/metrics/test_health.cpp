@@ -70,34 +70,22 @@ TEST(Health, EnergyGainIsMotionBeyondTheInitialTotalEnergy) {
   const MetricsBaseline b = measure_baseline(m, s);
   const Sample s0 = measure(m, s, b);
   ASSERT_DOUBLE_EQ(s0.total_energy, 12.5);
+  // The warnings after one step to the second particle at x1, the two moving apart at speed u each.
+  const auto after_one_step = [&](double x1, double u) {
+    HealthMonitor h(m, s, s0, 10, false);
+    State t = s;
+    t.x.row(1) = Vec3(x1, 0, 0);
+    t.v.row(0) = Vec3(u, 0, 0);
+    t.v.row(1) = Vec3(-u, 0, 0);
+    h.observe(1, t, measure(m, t, b));
+    return codes(h);
+  };
   // Stretched further at rest: E_el = 2^2 / 0.02 = 200 J, no motion: not a gain.
-  {
-    HealthMonitor h(m, s, s0, 10, false);
-    State t = s;
-    t.x.row(1) = Vec3(4.0, 0, 0);
-    h.observe(1, t, measure(m, t, b));
-    EXPECT_TRUE(h.warnings().empty());
-  }
+  EXPECT_TRUE(after_one_step(4.0, 0.0).empty());
   // Released: at rest length each particle moves at 2.5 m/s, K = 2 x 0.5 x 2.5^2 = 6.25 J <= 12.5 J.
-  {
-    HealthMonitor h(m, s, s0, 10, false);
-    State t = s;
-    t.x.row(1) = Vec3(2.0, 0, 0);
-    t.v.row(0) = Vec3(2.5, 0, 0);
-    t.v.row(1) = Vec3(-2.5, 0, 0);
-    h.observe(1, t, measure(m, t, b));
-    EXPECT_TRUE(h.warnings().empty());
-  }
+  EXPECT_TRUE(after_one_step(2.0, 2.5).empty());
   // Moving at 4 m/s each: K = 16 J > 12.5 J + 0.1 x the scale (12.5 J): 1.25 J.
-  {
-    HealthMonitor h(m, s, s0, 10, false);
-    State t = s;
-    t.x.row(1) = Vec3(2.0, 0, 0);
-    t.v.row(0) = Vec3(4.0, 0, 0);
-    t.v.row(1) = Vec3(-4.0, 0, 0);
-    h.observe(1, t, measure(m, t, b));
-    EXPECT_EQ(codes(h), std::vector<std::string>{"energy_gain"});
-  }
+  EXPECT_EQ(after_one_step(2.0, 4.0), std::vector<std::string>{"energy_gain"});
 }
 
 TEST(Health, VolumeLostBeyondTheThresholdIsWarned) {
