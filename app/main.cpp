@@ -43,7 +43,7 @@
 #include "runfile/run_file.hpp"
 #include "runfile/series.hpp"
 #include "runfile/xdmf.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace fs = std::filesystem;
 using namespace pbdbench;

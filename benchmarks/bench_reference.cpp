@@ -25,7 +25,7 @@
 
 #include "config/config.hpp"
 #include "runfile/build_info.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 using namespace pbdbench;
 

@@ -35,7 +35,7 @@
 #include "core/constraint_functions.hpp"
 #include "harness/runner.hpp"
 #include "runfile/build_info.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 using namespace pbdbench;
 

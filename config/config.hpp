@@ -19,7 +19,7 @@
 
 #include "core/state.hpp"
 #include "metrics/metrics.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench::config {
 

@@ -14,7 +14,7 @@
 #include "config/internal.hpp"
 #include "core/generators.hpp"
 #include "core/mesh_io.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench::config {
 

@@ -17,7 +17,7 @@
 #include "reference/global_ceres.hpp"
 #include "reference/global_newton.hpp"
 #include "reference/global_problem.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "solvers/step_common.hpp"
 #include "solvers/substep.hpp"
 

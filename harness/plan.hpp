@@ -12,7 +12,7 @@
 
 #include "config/config.hpp"
 #include "core/model.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench {
 

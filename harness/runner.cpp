@@ -12,7 +12,7 @@
 #include "harness/relax.hpp"
 #include "metrics/health.hpp"
 #include "metrics/shadow.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

@@ -21,7 +21,7 @@
 #include "config/config.hpp"
 #include "metrics/metrics.hpp"
 #include "runfile/run_file.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

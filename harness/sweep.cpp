@@ -25,7 +25,7 @@
 #include "core/cancel.hpp"
 #include "runfile/output_guard.hpp"
 #include "runfile/run_file.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 extern char** environ;
 

@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "reference/global_problem.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench {
 

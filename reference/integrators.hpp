@@ -4,7 +4,7 @@
 #include <memory>
 
 #include "core/model.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

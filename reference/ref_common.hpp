@@ -14,8 +14,8 @@
 #include "reference/reduced_linear_solver.hpp"
 #include "reference/scene_system.hpp"
 #include "reference/sundials_support.hpp"
-#include "solvers/options.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/options.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

@@ -28,7 +28,7 @@
 #include <vector>
 
 #include "core/model.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

@@ -9,7 +9,7 @@
 
 #include "metrics/metrics.hpp"
 #include "metrics/shadow.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

@@ -32,10 +32,10 @@
 
 #include "core/contacts.hpp"
 #include "core/model.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 #include "solvers/ordering.hpp"
 #include "solvers/projection_kernels.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

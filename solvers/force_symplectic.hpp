@@ -19,8 +19,8 @@
 
 #include "core/contacts.hpp"
 #include "core/model.hpp"
-#include "solvers/options.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/options.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

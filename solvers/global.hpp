@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "core/model.hpp"
-#include "solvers/options.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/options.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

@@ -17,7 +17,7 @@
 #include "core/contacts.hpp"
 #include "core/model.hpp"
 #include "core/types.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench {
 

@@ -7,7 +7,7 @@
 
 #include "core/model.hpp"
 #include "core/types.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench {
 

@@ -4,7 +4,7 @@
 #include "reference/reference_solvers.hpp"
 #include "solvers/force_symplectic.hpp"
 #include "solvers/global.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "solvers/step_common.hpp"
 
 namespace pbdbench {
@@ -31,6 +31,16 @@ const std::vector<SolverInfo>& solver_catalog() {
 }
 
 std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& model) {
+  {
+    std::string names;
+    bool known = false;
+    for (const SolverInfo& s : solver_catalog()) {
+      known = known || s.name == options.name;
+      names += (names.empty() ? "" : ", ") + s.name;
+    }
+    if (!known)
+      throw std::invalid_argument("solver.name = '" + options.name + "' is not one of " + names);
+  }
   const std::string problem = options.validate();
   if (!problem.empty()) throw std::invalid_argument(problem);
   if (options.name == "pbd") return make_pbd_solver(options, model);

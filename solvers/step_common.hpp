@@ -10,8 +10,8 @@
 
 #include "core/model.hpp"
 #include "core/state.hpp"
-#include "solvers/options.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/options.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 

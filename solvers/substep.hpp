@@ -17,9 +17,9 @@
 #include "core/contacts.hpp"
 #include "core/model.hpp"
 #include "solvers/kernels.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 #include "solvers/ordering.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "solvers/step_common.hpp"
 
 namespace pbdbench {

@@ -12,7 +12,7 @@
 #include "config/config.hpp"
 #include "core/fem.hpp"
 #include "core/model_checks.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "tests/config/helpers.hpp"
 
 namespace pbdbench::config {

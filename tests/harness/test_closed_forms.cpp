@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "config/config.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 using namespace pbdbench;
 

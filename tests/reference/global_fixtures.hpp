@@ -11,7 +11,7 @@
 #include "core/contacts.hpp"
 #include "core/state.hpp"
 #include "reference/global_problem.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "solvers/step_common.hpp"
 #include "solvers/substep.hpp"
 

@@ -33,7 +33,7 @@
 #include "core/fem.hpp"
 #include "core/model.hpp"
 #include "reference/global_problem.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench {
 namespace {

@@ -14,7 +14,7 @@
 #include <sunmatrix/sunmatrix_sparse.h>
 
 #include "reference/first_order_system.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "tests/reference/integrator_fixtures.hpp"
 
 namespace pbdbench {

@@ -16,7 +16,7 @@
 #include "core/contacts.hpp"
 #include "core/generators.hpp"
 #include "reference/contact_potential.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 namespace {

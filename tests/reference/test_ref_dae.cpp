@@ -28,8 +28,8 @@
 #include "reference/mechanical_system.hpp"
 #include "reference/ref_dae.hpp"
 #include "reference/reference_solvers.hpp"
-#include "solvers/options.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/options.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 namespace {

@@ -14,7 +14,7 @@
 
 #include "core/generators.hpp"
 #include "reference/scene_system.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "tests/reference/integrator_fixtures.hpp"
 
 namespace pbdbench {

@@ -27,7 +27,7 @@
 #include "core/fem.hpp"
 #include "core/generators.hpp"
 #include "reference/scene_system.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 namespace {

@@ -10,7 +10,7 @@
 
 #include "core/constraint_functions.hpp"
 #include "regress/regress.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 #include "tests/temp_dir.hpp"
 
 namespace pbdbench::regress {

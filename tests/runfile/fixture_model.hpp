@@ -8,7 +8,7 @@
 
 #include "core/model.hpp"
 #include "metrics/metrics.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench::test {
 

@@ -13,8 +13,8 @@
 
 #include "core/model.hpp"
 #include "core/state.hpp"
-#include "solvers/options.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/options.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench::test {
 

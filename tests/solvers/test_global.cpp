@@ -11,7 +11,7 @@
 #include "config/config.hpp"
 #include "metrics/metrics.hpp"
 #include "solvers/global.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 namespace {

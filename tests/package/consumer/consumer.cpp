@@ -9,7 +9,7 @@
 #include "core/state.hpp"
 #include "metrics/metrics.hpp"
 #include "runfile/run_file.hpp"
-#include "solvers/solver.hpp"
+#include "solver_api/solver.hpp"
 
 using namespace pbdbench;
 

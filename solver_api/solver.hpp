@@ -12,7 +12,7 @@
 
 #include "core/model.hpp"
 #include "core/state.hpp"
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench {
 

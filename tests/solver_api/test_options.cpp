@@ -1,10 +1,10 @@
-// Tests of solvers/options.cpp: what solver.threads = 0 resolves to.
+// Tests of solver_api/options.cpp: what solver.threads = 0 resolves to.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <string>
 
-#include "solvers/options.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench::test {
 namespace {

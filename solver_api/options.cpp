@@ -1,6 +1,4 @@
-#include "solvers/options.hpp"
-
-#include "solvers/solver.hpp"
+#include "solver_api/options.hpp"
 
 #include <algorithm>
 #include <array>
@@ -75,15 +73,7 @@ const std::vector<std::string>& seed_departure_ids() {
 }
 
 std::string SolverOptions::validate() const {
-  {
-    std::string names;
-    bool known = false;
-    for (const SolverInfo& s : solver_catalog()) {
-      known = known || s.name == name;
-      names += (names.empty() ? "" : ", ") + s.name;
-    }
-    if (!known) return "solver.name = '" + name + "' is not one of " + names;
-  }
+  // solver.name is checked against the catalogue by make_solver (and by the schema's choices).
   if (iterations < 1) return out_of_range("solver.iterations", iterations, "below the minimum", 1);
   if (iterations > 100000)
     return out_of_range("solver.iterations", iterations, "above the maximum", 100000);
