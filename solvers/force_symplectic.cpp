@@ -82,20 +82,15 @@ class ForceSymplecticSolver final : public Solver {
 
   StepReport step(const Model& model, State& state, double dt) override {
     check_step(model, state, dt, particles_, constraints_);
-    StepReport report;
-    const int substeps = options_.substeps;
-    const double h = dt / substeps;
-    report.substeps = substeps;
     Points& x = state.x;
     Points& v = state.v;
     state.lambda.assign(model.constraints.size(), 0.0);
     f_.resize(particles_, 3);
 
-    for (int s = 0; s < substeps; ++s) {
-      throw_if_cancelled("a substep");
-      const double t_end = state.time + (s + 1) * h;
-      PhaseTimer timer;
-      set_kinematic(model, x, v, t_end);
+    return run_substeps(model, state, dt, options_.substeps,
+                        [&](const Substep& sub, PhaseTimer& timer, StepReport& report) {
+      const double h = sub.h;
+      const double t_end = sub.t_end;
       timer.lap(report.time_predict);
 
       contacts_ = find_contacts(model, x, t_end, options_.contact_margin);
@@ -133,10 +128,7 @@ class ForceSymplecticSolver final : public Solver {
         x.row(i) += h * v.row(i);
       }
       timer.lap(report.time_velocity);
-    }
-    state.time += dt;
-    state.step += 1;
-    return report;
+    });
   }
 
  private:

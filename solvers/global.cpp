@@ -1,6 +1,6 @@
 // global-cholmod, global-cg, global-ceres: the simulation whose every (sub)step is the global
 // projection solved to convergence (reference/global_problem.hpp, docs/global.md). The substep
-// around it is pbd's and xpbd's (solvers/substep.hpp), so that only the projection differs:
+// around it is pbd's and xpbd's (solver_api/substep_driver.hpp, solver_api/velocity_pass.hpp), so that only the projection differs:
 //   kinematic particles on their targets at t_end;  v += h g;  x~ = x + h v
 //   contacts = find_contacts(x~, t_end, contact_margin)
 //   x* = the global step from (x, x~) with those contacts, to solver.global.tolerance
@@ -18,8 +18,8 @@
 #include "reference/global_newton.hpp"
 #include "reference/global_problem.hpp"
 #include "solvers/global.hpp"
-#include "solvers/step_common.hpp"
-#include "solvers/substep.hpp"
+#include "solver_api/substep_driver.hpp"
+#include "solver_api/velocity_pass.hpp"
 
 namespace pbdbench {
 
@@ -28,7 +28,7 @@ namespace {
 class GlobalSolver final : public Solver {
  public:
   GlobalSolver(const SolverOptions& options, const Model& model)
-      : options_(options), problem_(model), work_(model.particle_count()) {
+      : options_(options), problem_(model) {
     if (options.name == "global-cholmod")
       newton_ = std::make_unique<GlobalNewton>(options, GlobalLinearSolver::Cholmod);
     else if (options.name == "global-cg")
@@ -43,32 +43,28 @@ class GlobalSolver final : public Solver {
     check_step(model, state, dt, model.particle_count(), model.constraint_count());
     if (&model != &problem_.model())
       throw std::invalid_argument(name() + ": step() was given another model than it was built for");
-    StepReport report;
-    const int substeps = options_.substeps;
-    const double h = dt / substeps;
-    report.substeps = substeps;
     Points& x = state.x;
     Points& v = state.v;
-    for (int s = 0; s < substeps; ++s) {
-      const double t_end = state.time + (s + 1) * h;
-      PhaseTimer timer;
-      set_kinematic(model, x, v, t_end);
+    StepReport report = run_substeps(model, state, dt, options_.substeps,
+                                     [&](const Substep& sub, PhaseTimer& timer, StepReport& report) {
+      const double h = sub.h;
+      const double t_end = sub.t_end;
       apply_gravity(model, h, v);
-      predict_positions(model, x, v, h, work_.p);
-      work_.v_before = v;
+      predict_positions(model, x, v, h, p_);
+      v_before_ = v;
       timer.lap(report.time_predict);
 
-      work_.contacts = find_contacts(model, work_.p, t_end, options_.contact_margin);
-      report.contacts += static_cast<int>(work_.contacts.size());
-      problem_.begin_step(x, work_.p, h, t_end, work_.contacts);
+      contacts_ = find_contacts(model, p_, t_end, options_.contact_margin);
+      report.contacts += static_cast<int>(contacts_.size());
+      problem_.begin_step(x, p_, h, t_end, contacts_);
       timer.lap(report.time_contacts);
 
       // Rigid rows first, in a fixed order: their multipliers carry over; contacts start at 0.
-      const size_t rigid = problem_.rows().size() - work_.contacts.size();
+      const size_t rigid = problem_.rows().size() - contacts_.size();
       row_lambda_.resize(rigid);
       row_lambda_.resize(problem_.rows().size(), 0.0);
-      const GlobalResult r = newton_ ? newton_->solve(problem_, work_.p, row_lambda_)
-                               : solve_global_ceres(problem_, options_, work_.p, row_lambda_);
+      const GlobalResult r = newton_ ? newton_->solve(problem_, p_, row_lambda_)
+                               : solve_global_ceres(problem_, options_, p_, row_lambda_);
       report.newton_iterations += r.iterations;
       report.linear_iterations += r.inner_iterations;
       report.linear_setups += r.factorizations;
@@ -81,15 +77,15 @@ class GlobalSolver final : public Solver {
       report.residual_position = r.residual;
       timer.lap(report.time_project);
 
-      work_.contact_lambda.assign(row_lambda_.begin() + static_cast<std::ptrdiff_t>(rigid),
-                                  row_lambda_.end());
-      for (double l : work_.contact_lambda) report.active_contacts += l > 0.0 ? 1 : 0;
-      finish_substep(model, t_end, h, work_, x, v);
+      contact_lambda_.assign(row_lambda_.begin() + static_cast<std::ptrdiff_t>(rigid),
+                             row_lambda_.end());
+      for (double l : contact_lambda_) report.active_contacts += l > 0.0 ? 1 : 0;
+      update_from_positions(model, h, p_, x, v);
+      velocity_pass(model, contacts_, contact_lambda_, x, v_before_, v, t_end, h);
       timer.lap(report.time_velocity);
-    }
+    });
+    // The constraint forces at the end of the step; state.time has advanced, which they do not read.
     problem_.constraint_forces(x, row_lambda_, state.lambda);
-    state.time += dt;
-    state.step += 1;
     return report;
   }
 
@@ -97,7 +93,11 @@ class GlobalSolver final : public Solver {
   SolverOptions options_;
   GlobalProblem problem_;
   std::unique_ptr<GlobalNewton> newton_;  // null for global-ceres
-  SubstepScratch work_;
+  // Scratch, kept between steps to avoid reallocation.
+  Points p_;                             // (n x 3) m, predicted, then solved positions
+  Points v_before_;                      // (n x 3) m/s, velocities before the solve
+  std::vector<Contact> contacts_;        // this substep's contacts
+  std::vector<double> contact_lambda_;   // (contacts) kg m, their multipliers after the solve
   std::vector<double> row_lambda_;
 };
 

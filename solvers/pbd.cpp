@@ -30,7 +30,7 @@
 #include "solvers/ordering.hpp"
 #include "solvers/step_common.hpp"
 #include "solvers/substep.hpp"
-#include "solvers/velocity_pass.hpp"
+#include "solver_api/velocity_pass.hpp"
 
 namespace pbdbench {
 
@@ -59,10 +59,6 @@ class PbdSolver final : public Solver {
 
   StepReport step(const Model& model, State& state, double dt) override {
     check_step(model, state, dt, particles_, constraints_);
-    StepReport report;
-    const int substeps = options_.substeps;
-    const double h = dt / substeps;
-    report.substeps = substeps;
     // PBD has no multipliers, hence no constraint forces (core/state.hpp): NaN.
     state.lambda.assign(model.constraints.size(), std::numeric_limits<double>::quiet_NaN());
     Points& x = state.x;
@@ -72,11 +68,10 @@ class PbdSolver final : public Solver {
       round_to_float(x);
       round_to_float(v);
     }
-
-    for (int s = 0; s < substeps; ++s) {
-      const double t_end = state.time + (s + 1) * h;
-      PhaseTimer timer;
-      set_kinematic(model, x, v, t_end);
+    return run_substeps(model, state, dt, options_.substeps,
+                        [&](const Substep& sub, PhaseTimer& timer, StepReport& report) {
+      const double h = sub.h;
+      const double t_end = sub.t_end;
       if (single)
         for (const Attachment& a : model.attachments) {
           round_row_to_float(x, a.particle);
@@ -95,21 +90,18 @@ class PbdSolver final : public Solver {
       if (compiled_) {
         compiled_->set_substep(model, h);
         compiled_->begin_substep(model, work_.p, x, work_.contacts, t_end, ordering_);
-        compiled_->sweeps(options_.iterations, state.step, s, ordering_, report);
+        compiled_->sweeps(options_.iterations, state.step, sub.index, ordering_, report);
         compiled_->end_substep(work_.p, nullptr, work_.contact_lambda, work_.contact_active);
         for (char a : work_.contact_active) report.active_contacts += a;
       } else {
-        run_sweeps(model, options_, ordering_, state.step, s, nullptr, work_, report,
+        run_sweeps(model, options_, ordering_, state.step, sub.index, nullptr, work_, report,
                    [&](int j, Stencil& st) { return project(model, j, t_end, st); });
       }
       timer.lap(report.time_project);
 
       finish_substep(model, t_end, h, work_, x, v, options_.precision);
       timer.lap(report.time_velocity);
-    }
-    state.time += dt;
-    state.step += 1;
-    return report;
+    });
   }
 
  private:

@@ -33,7 +33,7 @@
 #include "solvers/kernels.hpp"
 #include "solvers/ordering.hpp"
 #include "solvers/step_common.hpp"
-#include "solvers/velocity_pass.hpp"
+#include "solver_api/velocity_pass.hpp"
 
 namespace pbdbench {
 

@@ -1,38 +1,8 @@
 #include "solvers/substep.hpp"
 
-#include "solvers/velocity_pass.hpp"
+#include "solver_api/velocity_pass.hpp"
 
 namespace pbdbench {
-
-void apply_gravity(const Model& model, double h, Points& v, Precision precision) {
-  if (precision == Precision::Float) {
-    // v += h g in float: float(h) float(g) rounded, added in float.
-    const float hf = static_cast<float>(h);
-    float dv[3];
-    for (int k = 0; k < 3; ++k) dv[k] = hf * static_cast<float>(model.gravity[k]);
-    for (int i = 0; i < model.particle_count(); ++i)
-      if (model.inv_mass[static_cast<size_t>(i)] > 0.0)
-        for (int k = 0; k < 3; ++k) v(i, k) = static_cast<double>(static_cast<float>(v(i, k)) + dv[k]);
-    return;
-  }
-  for (int i = 0; i < model.particle_count(); ++i)
-    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) v.row(i) += (h * model.gravity).transpose();
-}
-
-void predict_positions(const Model& model, const Points& x, const Points& v, double h, Points& p,
-                       Precision precision) {
-  p = x;
-  if (precision == Precision::Float) {
-    const float hf = static_cast<float>(h);
-    for (int i = 0; i < model.particle_count(); ++i)
-      if (model.inv_mass[static_cast<size_t>(i)] > 0.0)
-        for (int k = 0; k < 3; ++k)
-          p(i, k) = static_cast<double>(static_cast<float>(x(i, k)) + hf * static_cast<float>(v(i, k)));
-    return;
-  }
-  for (int i = 0; i < model.particle_count(); ++i)
-    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) p.row(i) += h * v.row(i);
-}
 
 void find_substep_contacts(const Model& model, double t_end, double margin, const Points& x,
                            Ordering& ordering, SubstepScratch& work, StepReport& report) {
@@ -58,19 +28,7 @@ ConstraintEval contact_stencil(const Model& model, size_t k, double t_end, Subst
 
 void finish_substep(const Model& model, double t_end, double h, SubstepScratch& work, Points& x,
                     Points& v, Precision precision) {
-  const bool single = precision == Precision::Float;
-  const float hf = static_cast<float>(h);
-  for (int i = 0; i < model.particle_count(); ++i) {
-    if (model.inv_mass[static_cast<size_t>(i)] > 0.0) {
-      if (single) {
-        for (int k = 0; k < 3; ++k)
-          v(i, k) = static_cast<double>((static_cast<float>(work.p(i, k)) - static_cast<float>(x(i, k))) / hf);
-      } else {
-        v.row(i) = (work.p.row(i) - x.row(i)) / h;
-      }
-    }
-    x.row(i) = work.p.row(i);
-  }
+  update_from_positions(model, h, work.p, x, v, precision);
   velocity_pass(model, work.contacts, work.contact_lambda, x, work.v_before, v, t_end, h,
                 precision);
 }

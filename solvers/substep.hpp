@@ -45,15 +45,6 @@ struct SubstepScratch {
   JacobiAccumulator jacobi;                     // Jacobi: the corrections of this sweep
 };
 
-// v_i += h g for the dynamic particles (inv_mass > 0). With Precision::Float in float arithmetic
-// (h and g rounded to float, the sum rounded to float): v must hold floats.
-void apply_gravity(const Model& model, double h, Points& v, Precision precision = Precision::Double);
-
-// p = x, then p_i += h v_i for the dynamic particles; with Precision::Float in float arithmetic
-// (x and v must hold floats).
-void predict_positions(const Model& model, const Points& x, const Points& v, double h, Points& p,
-                       Precision precision = Precision::Double);
-
 // The contacts of the substep at the predicted positions work.p (find_contacts at t_end with
 // `margin`); the ordering is told of them (and of x, the positions at the start of the substep),
 // their multipliers and activity flags are cleared, and report.contacts counts them.

@@ -84,10 +84,8 @@ class XpbdSolver final : public Solver {
 
   StepReport step(const Model& model, State& state, double dt) override {
     check_step(model, state, dt, particles_, constraints_);
-    StepReport report;
     const int substeps = options_.substeps;
     const double h = dt / substeps;
-    report.substeps = substeps;
     Points& x = state.x;
     Points& v = state.v;
     const bool single = options_.precision == Precision::Float;
@@ -102,10 +100,10 @@ class XpbdSolver final : public Solver {
     state.lambda.assign(model.constraints.size(), 0.0);
     std::vector<double>& lambda = state.lambda;
 
-    for (int s = 0; s < substeps; ++s) {
-      const double t_end = state.time + (s + 1) * h;
-      PhaseTimer timer;
-      set_kinematic(model, x, v, t_end);
+    const StepReport report = run_substeps(
+        model, state, dt, substeps, [&](const Substep& sub, PhaseTimer& timer, StepReport& report) {
+      const int s = sub.index;
+      const double t_end = sub.t_end;
       if (single)
         for (const Attachment& a : model.attachments) {
           round_row_to_float(x, a.particle);
@@ -139,13 +137,11 @@ class XpbdSolver final : public Solver {
 
       finish_substep(model, t_end, h, work_, x, v, options_.precision);
       timer.lap(report.time_velocity);
-    }
+    });
     // State::lambda holds forces (core/state.hpp): the last substep's accumulated multiplier is
     // an impulse times h, the force is lambda / h^2 (Macklin et al. 2016: f = grad C^T lambda /
     // h^2). Every substep starts from lambda = 0, so this changes nothing else.
     for (double& l : lambda) l /= h * h;
-    state.time += dt;
-    state.step += 1;
     return report;
   }
 

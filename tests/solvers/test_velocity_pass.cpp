@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "solver_test_util.hpp"
-#include "solvers/velocity_pass.hpp"
+#include "solver_api/velocity_pass.hpp"
 
 namespace pbdbench::test {
 namespace {

@@ -1,11 +1,11 @@
-#include "solvers/velocity_pass.hpp"
+#include "solver_api/velocity_pass.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 
-#include "solvers/step_common.hpp"
+#include "solver_api/substep_driver.hpp"
 
 namespace pbdbench {
 
