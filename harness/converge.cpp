@@ -65,7 +65,7 @@ constexpr OrderCase kOrders[] = {
      "xpbd, Jacobi (solver.order = jacobi, the configured relaxation and averaging), one substep"},
 };
 
-// The step's global problem, set up as solvers/global.cpp sets up its substep.
+// The step's global problem, set up as reference/global_solver.cpp sets up its substep.
 void begin_problem(const Model& model, const State& start, double h, double contact_margin,
                    GlobalProblem& problem) {
   Points x = start.x, v = start.v, p;

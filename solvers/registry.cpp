@@ -3,7 +3,7 @@
 
 #include "reference/reference_solvers.hpp"
 #include "solvers/force_symplectic.hpp"
-#include "solvers/global.hpp"
+#include "reference/global_solver.hpp"
 #include "solver_api/solver.hpp"
 #include "solvers/step_common.hpp"
 

@@ -1,5 +1,5 @@
 // Helpers shared by the tests of the global projection: catalog scenes made small, the start of
-// a step set up as solvers/global.cpp sets it up, and finite differences.
+// a step set up as reference/global_solver.cpp sets it up, and finite differences.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -41,7 +41,7 @@ inline void advance(const Model& model, State& state, const std::string& solver,
   for (int k = 0; k < steps; ++k) s->step(model, state, dt);
 }
 
-// The global step of one substep h from `state`, set up as solvers/global.cpp does: kinematic
+// The global step of one substep h from `state`, set up as reference/global_solver.cpp does: kinematic
 // targets at t + h, gravity, prediction, contacts at the prediction (margin 0). Returns x~.
 inline Points begin_global_step(GlobalProblem& problem, const State& state, double h) {
   const Model& model = problem.model();

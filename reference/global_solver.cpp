@@ -17,7 +17,7 @@
 #include "reference/global_ceres.hpp"
 #include "reference/global_newton.hpp"
 #include "reference/global_problem.hpp"
-#include "solvers/global.hpp"
+#include "reference/global_solver.hpp"
 #include "solver_api/substep_driver.hpp"
 #include "solver_api/velocity_pass.hpp"
 

@@ -1,4 +1,4 @@
-// The global solvers as whole simulations (solvers/global.cpp): global-cholmod, global-cg and
+// The global solvers as whole simulations (reference/global_solver.cpp): global-cholmod, global-cg and
 // global-ceres, made by make_solver() like every other solver.
 #pragma once
 

@@ -1,4 +1,4 @@
-// Tests of solvers/global.cpp: the global solvers as whole simulations.
+// Tests of reference/global_solver.cpp: the global solvers as whole simulations.
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -10,7 +10,7 @@
 
 #include "config/config.hpp"
 #include "metrics/metrics.hpp"
-#include "solvers/global.hpp"
+#include "reference/global_solver.hpp"
 #include "solver_api/solver.hpp"
 
 namespace pbdbench {
