@@ -29,6 +29,7 @@
 #include "app/claims_command.hpp"
 #include "app/regress_command.hpp"
 #include "app/slurm_command.hpp"
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "config/data_dir.hpp"
 #include "core/cancel.hpp"

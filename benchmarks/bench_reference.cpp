@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "runfile/build_info.hpp"
 #include "solver_api/solver.hpp"

@@ -31,6 +31,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "core/constraint_functions.hpp"
 #include "harness/runner.hpp"

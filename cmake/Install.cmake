@@ -8,8 +8,10 @@
 #   P/include/pbdbench/             the headers of the exported libraries (#include "core/model.hpp")
 #   P/lib/libpbdbench_*.a           the exported libraries
 #   P/lib/cmake/pbdbench/           the CMake package: find_package(pbdbench) gives pbdbench::core
-#                                   (the model and state), pbdbench::metrics, pbdbench::solvers
-#                                   (with pbdbench::reference, the solvers they reach), and
+#                                   (the model and state), pbdbench::metrics,
+#                                   pbdbench::solver_api (the solver interface),
+#                                   pbdbench::solvers and pbdbench::reference (the families),
+#                                   pbdbench::catalog (every solver by name: make_solver), and
 #                                   pbdbench::runfile (the HDF5 run files), with their own
 #                                   dependencies found from Debian's packages
 #
@@ -58,7 +60,7 @@ function(_pbdbench_collect target)
     endif()
   endforeach()
 endfunction()
-foreach(_target pbdbench_core pbdbench_metrics pbdbench_solvers pbdbench_runfile)
+foreach(_target pbdbench_core pbdbench_metrics pbdbench_solver_api pbdbench_solvers pbdbench_reference pbdbench_catalog pbdbench_runfile)
   _pbdbench_collect(${_target})
 endforeach()
 

@@ -10,11 +10,11 @@
 
 #include <fmt/format.h>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "config/internal.hpp"
 #include "core/generators.hpp"
 #include "core/mesh_io.hpp"
-#include "solver_api/solver.hpp"
 
 namespace pbdbench::config {
 
@@ -183,18 +183,18 @@ std::vector<std::string> kind_names() {
   return names;
 }
 
-// Every registered solver (solvers/registry.cpp), in the catalog's order.
+// Every solver of the catalogue (catalog/solver_catalog.cpp), in its order.
 std::vector<std::string> solver_names() {
   std::vector<std::string> names;
-  for (const SolverInfo& s : solver_catalog()) names.push_back(s.name);
+  for (const SolverEntry& s : solver_catalog()) names.push_back(s.name);
   return names;
 }
 
-// "" (no shadow) and the global solvers.
+// "" (no shadow) and the solvers that can run as a shadow (the global solvers).
 std::vector<std::string> shadow_solver_names() {
   std::vector<std::string> names = {""};
-  for (const SolverInfo& s : solver_catalog())
-    if (s.name.rfind("global-", 0) == 0) names.push_back(s.name);
+  for (const SolverEntry& s : solver_catalog())
+    if (s.can.shadow) names.push_back(s.name);
   return names;
 }
 

@@ -1,3 +1,4 @@
+#include "catalog/solver_catalog.hpp"
 #include "harness/converge.hpp"
 
 #include <algorithm>

@@ -12,6 +12,7 @@
 
 #include <fmt/format.h>
 
+#include "catalog/solver_catalog.hpp"
 #include "runfile/series.hpp"
 
 namespace pbdbench {
@@ -33,7 +34,9 @@ constexpr double kBaseBytes = 96.0 * 1024 * 1024;  // the program, HDF5's caches
 constexpr double kMaxSeconds = 24 * 3600.0;
 
 bool is_reference(const std::string& solver) {
-  return solver.rfind("ref-", 0) == 0 || solver.rfind("global-", 0) == 0;
+  const SolverEntry* entry = find_solver(solver);
+  return entry != nullptr &&
+         (entry->family == SolverFamily::Reference || entry->family == SolverFamily::Global);
 }
 
 // Particle pairs closer than the sum of their radii at the start, counted with a grid (no list).

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/constraint_functions.hpp"
 
 namespace pbdbench {
@@ -27,7 +28,8 @@ void blend_rest_values(const Model& model, const std::vector<double>& start, dou
 }
 
 bool solver_supports_relaxation(const std::string& solver_name) {
-  return solver_name == "pbd" || solver_name == "xpbd" || solver_name == "pbd-seed";
+  const SolverEntry* entry = find_solver(solver_name);
+  return entry != nullptr && entry->can.relaxation;
 }
 
 }  // namespace pbdbench

@@ -1,3 +1,4 @@
+#include "catalog/solver_catalog.hpp"
 #include "harness/runner.hpp"
 
 #include <chrono>

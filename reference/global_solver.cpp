@@ -103,27 +103,6 @@ class GlobalSolver final : public Solver {
 
 }  // namespace
 
-const std::vector<SolverInfo>& global_solver_catalog() {
-  static const std::vector<SolverInfo> catalog = {
-      {"global-cholmod",
-       "global projection: every step's converged implicit step, Newton on an augmented "
-       "Lagrangian, sparse Cholesky (CHOLMOD)"},
-      {"global-cg",
-       "global projection: the same Newton iterations with preconditioned conjugate gradients "
-       "(assembled or matrix-free)"},
-      {"global-ceres",
-       "global projection: the same step as nonlinear least squares (Ceres, "
-       "Levenberg-Marquardt on SuiteSparse)"},
-  };
-  return catalog;
-}
-
-bool is_global_solver(const std::string& name) {
-  for (const SolverInfo& s : global_solver_catalog())
-    if (s.name == name) return true;
-  return false;
-}
-
 std::unique_ptr<Solver> make_global_solver(const SolverOptions& options, const Model& model) {
   return std::make_unique<GlobalSolver>(options, model);
 }

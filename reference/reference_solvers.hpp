@@ -1,7 +1,7 @@
 // The reference solvers: the scene written as an energy (reference/energy.hpp) and integrated
 // implicitly by SUNDIALS with Newton iterations on analytic sparse Jacobians and the KLU sparse
 // direct solver. They implement the same Solver interface as the PBD family and are made by the
-// same make_solver() (solvers/registry.cpp); docs/reference.md describes each.
+// same make_solver() (catalog/solver_catalog.hpp); docs/reference.md describes each.
 //
 //   ref-bdf     CVODE, BDF orders 1-5, adaptive steps, tolerances solver.ref.rtol/atol: the
 //               continuous-time truth
@@ -23,23 +23,6 @@
 // one, so that the force of constraint j on particle i is grad_i C_j lambda_j.
 #pragma once
 
-#include <memory>
-#include <string>
-#include <vector>
-
-#include "core/model.hpp"
-#include "solver_api/solver.hpp"
-
-namespace pbdbench {
-
-// Every reference solver, in a stable order.
-const std::vector<SolverInfo>& reference_solver_catalog();
-
-bool is_reference_solver(const std::string& name);
-
-// Builds the reference solver options.name for this model. Throws std::invalid_argument when the
-// model has something the solver does not simulate (a rigid constraint outside ref-dae, a
-// collider without solver.ref.ignore_colliders, ...), naming it.
-std::unique_ptr<Solver> make_reference_solver(const SolverOptions& options, const Model& model);
-
-}  // namespace pbdbench
+// The factories, one per file, and the global solvers' (catalog/solver_catalog.cpp holds the rows).
+#include "reference/global_solver.hpp"
+#include "reference/integrators.hpp"

@@ -73,7 +73,7 @@ const std::vector<std::string>& seed_departure_ids() {
 }
 
 std::string SolverOptions::validate() const {
-  // solver.name is checked against the catalogue by make_solver (and by the schema's choices).
+  // solver.name is checked against the catalogue by make_solver (catalog/) and the schema's choices.
   if (iterations < 1) return out_of_range("solver.iterations", iterations, "below the minimum", 1);
   if (iterations > 100000)
     return out_of_range("solver.iterations", iterations, "above the maximum", 100000);

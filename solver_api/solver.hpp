@@ -1,5 +1,6 @@
-// The one interface every solver implements, PBD family and (later) references alike: the runner,
-// the metrics and the run-file writer never ask which family they hold.
+// The one interface every solver implements, the PBD family (solvers/) and the reference and
+// global solvers (reference/) alike: the runner, the metrics and the run-file writer never ask
+// which family they hold. The catalogue that names and builds them: catalog/solver_catalog.hpp.
 //
 //   auto solver = make_solver(options, model);      // precomputation (colourings, ...)
 //   StepReport r = solver->step(model, state, dt);  // advance state by dt
@@ -67,17 +68,5 @@ class Solver {
   // The registered name: "pbd-seed", "pbd", "xpbd", "ref-bdf", ...
   virtual std::string name() const = 0;
 };
-
-struct SolverInfo {
-  std::string name;
-  std::string doc;  // one line
-};
-
-// Every registered solver, in a stable order.
-const std::vector<SolverInfo>& solver_catalog();
-
-// Builds the solver named options.name for this model. Throws std::invalid_argument naming the
-// field when options.validate() fails or the name is unknown.
-std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& model);
 
 }  // namespace pbdbench

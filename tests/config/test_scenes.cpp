@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "core/fem.hpp"
 #include "core/model_checks.hpp"

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "solver_api/solver.hpp"
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "core/contacts.hpp"
 #include "core/state.hpp"

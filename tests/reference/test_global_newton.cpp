@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "catalog/solver_catalog.hpp"
 #include "reference/global_ceres.hpp"
 #include "reference/global_newton.hpp"
 #include "tests/reference/global_fixtures.hpp"

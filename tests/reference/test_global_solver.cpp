@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "metrics/metrics.hpp"
 #include "reference/global_solver.hpp"
@@ -39,12 +40,12 @@ const std::vector<std::string> kGlobal = {"global-cholmod", "global-cg", "global
 
 TEST(GlobalSolvers, AreRegisteredAndListed) {
   for (const std::string& name : kGlobal) {
-    EXPECT_TRUE(is_global_solver(name));
-    bool listed = false;
-    for (const SolverInfo& s : solver_catalog()) listed = listed || s.name == name;
-    EXPECT_TRUE(listed) << name;
+    const SolverEntry* entry = find_solver(name);
+    ASSERT_NE(entry, nullptr) << name;
+    EXPECT_EQ(entry->family, SolverFamily::Global) << name;
+    EXPECT_TRUE(entry->can.shadow) << name;
   }
-  EXPECT_FALSE(is_global_solver("xpbd"));
+  EXPECT_EQ(find_solver("xpbd")->family, SolverFamily::Pbd);
 }
 
 // Twenty steps of a small damped cloth by each: every step converged, the same trajectory to far

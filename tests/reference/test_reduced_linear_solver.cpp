@@ -2,6 +2,7 @@
 // the first-order system solved through S = M + gamma D + gamma^2 K equals a dense solve of A;
 // matrices it cannot read are refused; and the integrators give the same trajectories with it as
 // with KLU on the whole matrix.
+#include "catalog/solver_catalog.hpp"
 #include "reference/reduced_linear_solver.hpp"
 
 #include <gtest/gtest.h>

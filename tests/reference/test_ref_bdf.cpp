@@ -2,6 +2,7 @@
 // spring driven by a kinematic anchor whose motion has kinks), on hand-written systems and
 // through catalog scenes and the solver registry; refusals, determinism, restarts and the
 // report fields.
+#include "catalog/solver_catalog.hpp"
 #include "reference/ref_bdf.hpp"
 
 #include <gtest/gtest.h>

@@ -3,6 +3,7 @@
 // distance v0^2 / (2 mu g); a bounce: the restitution backward Euler with a conservative barrier
 // implies), no penetration on the 125-ball bowl's first steps, the cyclic-penetration scene
 // against the global projection, and the refusals.
+#include "catalog/solver_catalog.hpp"
 #include "reference/ref_contact.hpp"
 
 #include <gtest/gtest.h>

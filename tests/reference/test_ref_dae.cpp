@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/generators.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
@@ -361,7 +362,7 @@ PendulumRun run_pendulum(double theta0, double periods, const SolverOptions& opt
   const Scene scene = pendulum(theta0);
   const double g = 9.81, L = 1.0, m = 1.0;
   const double T = pendulum_period(theta0, L, g);
-  auto solver = make_reference_solver(options, scene.model);
+  auto solver = make_solver(options, scene.model);
   State state = scene.initial;
   std::vector<Sample> samples{{0.0, state.x(1, 0), state.v(1, 0)}};
   PendulumRun run;
@@ -460,7 +461,7 @@ TEST(RefDae, HangingChainMultipliersAreTheWeightBelow) {
   const int links = 12;
   const double mass = 0.1, end_mass = 2.5, g = 9.81;
   const Scene scene = chain(links, Vec3(0.0, -1.0, 0.0), 0.1, mass, end_mass);
-  auto solver = make_reference_solver(dae_options(), scene.model);
+  auto solver = make_solver(dae_options(), scene.model);
   State state = scene.initial;
   double worst = 0.0;
   for (int k = 0; k < 50; ++k) {
@@ -496,7 +497,7 @@ TEST(RefDae, SwingingChainConservesEnergy) {
     return E;
   };
   for (const double rtol : {1e-10, 1e-8}) {
-    auto solver = make_reference_solver(dae_options(rtol, 1e-2 * rtol), scene.model);
+    auto solver = make_solver(dae_options(rtol, 1e-2 * rtol), scene.model);
     State state = scene.initial;
     const double E0 = energy(state);
     // Scale of the energy exchanged: the chain's fall, sum m g h, about 0.2 J.
@@ -536,7 +537,7 @@ TEST(RefDae, ModelWithoutRigidConstraintsIsAnImplicitOde) {
   add_chain(s.model, spec);
   s.initial = rest_state(s.model);
   s.initial.x(1, 0) = 1.5;
-  auto solver = make_reference_solver(dae_options(), s.model);
+  auto solver = make_solver(dae_options(), s.model);
   State state = s.initial;
   const double w = 1.0 / std::sqrt(1e-3 * 1.0);
   double worst = 0.0;
@@ -565,8 +566,8 @@ TEST(RefDae, KinematicPivotUsesTheAttachmentTarget) {
   moving.model.attachments[0].motion = 0;
   moving.initial = rest_state(moving.model);
   moving.initial.v.row(1) = motion.velocity.transpose();
-  auto a = make_reference_solver(dae_options(), fixed.model);
-  auto b = make_reference_solver(dae_options(), moving.model);
+  auto a = make_solver(dae_options(), fixed.model);
+  auto b = make_solver(dae_options(), moving.model);
   State sa = fixed.initial, sb = moving.initial;
   for (int k = 0; k < 100; ++k) {
     a->step(fixed.model, sa, 0.02);
@@ -597,8 +598,8 @@ TEST(RefDae, KinksOfAScriptedMotionAreSteppedOnNotOver) {
     return s;
   };
   const Scene a = make(), b = make();
-  auto sa = make_reference_solver(dae_options(), a.model);
-  auto sb = make_reference_solver(dae_options(), b.model);
+  auto sa = make_solver(dae_options(), a.model);
+  auto sb = make_solver(dae_options(), b.model);
   State xa = a.initial, xb = b.initial;
   const auto energy = [](const State& s) {  // about the pivot, fixed after the stop
     return 0.5 * s.v.row(1).squaredNorm() + 9.81 * (s.x(1, 1) - s.x(0, 1));
@@ -638,7 +639,7 @@ TEST(RefDae, VerticallyOscillatingPivotCarriesTheBob) {
   s.model.motions.push_back(motion);
   s.model.attachments[0].motion = 0;
   s.initial = rest_state(s.model);
-  auto solver = make_reference_solver(dae_options(), s.model);
+  auto solver = make_solver(dae_options(), s.model);
   State state = s.initial;
   const double w = 2.0 * std::numbers::pi * 2.0, A = 0.05;
   double worst_y = 0.0, worst_lambda = 0.0;
@@ -732,7 +733,7 @@ TEST(RefDae, KinematicOnlyModelFollowsItsTargets) {
   a.motion = 0;
   s.model.attachments.push_back(a);
   s.initial = rest_state(s.model);
-  auto solver = make_reference_solver(dae_options(), s.model);
+  auto solver = make_solver(dae_options(), s.model);
   State state = s.initial;
   const StepReport r = solver->step(s.model, state, 0.5);
   EXPECT_NEAR(state.x(1, 2), 1.0, 1e-15);
@@ -761,7 +762,7 @@ TEST(RefDae, RefusesRigidConstraintsOtherThanDistanceNamingThem) {
   c.compliance = 0.0;
   m.constraints.push_back(c);
   expect_throw_naming<std::invalid_argument>(
-      [&] { make_reference_solver(dae_options(), m); },
+      [&] { make_solver(dae_options(), m); },
       {"constraint 1", "volume", "rigid", "distance constraints only"});
 }
 
@@ -769,24 +770,24 @@ TEST(RefDae, RefusesCollidersUnlessIgnored) {
   {
     Scene s = pendulum(0.5);
     s.model.planes.push_back(PlaneCollider{});
-    expect_throw_naming<std::invalid_argument>([&] { make_reference_solver(dae_options(), s.model); },
+    expect_throw_naming<std::invalid_argument>([&] { make_solver(dae_options(), s.model); },
                                                {"plane collider 0", "ignore_colliders"});
     SolverOptions o = dae_options();
     o.ref_ignore_colliders = true;
-    auto solver = make_reference_solver(o, s.model);
+    auto solver = make_solver(o, s.model);
     State st = s.initial;
     EXPECT_NO_THROW(solver->step(s.model, st, 0.01));
   }
   {
     Scene s = pendulum(0.5);
     s.model.spheres.push_back(SphereCollider{});
-    expect_throw_naming<std::invalid_argument>([&] { make_reference_solver(dae_options(), s.model); },
+    expect_throw_naming<std::invalid_argument>([&] { make_solver(dae_options(), s.model); },
                                                {"sphere collider 0", "ignore_colliders"});
   }
   {
     Scene s = pendulum(0.5);
     s.model.particle_contact = true;
-    expect_throw_naming<std::invalid_argument>([&] { make_reference_solver(dae_options(), s.model); },
+    expect_throw_naming<std::invalid_argument>([&] { make_solver(dae_options(), s.model); },
                                                {"particle contact", "ignore_colliders"});
   }
 }
@@ -796,7 +797,7 @@ TEST(RefDae, RefusesInitialPositionsOffTheConstraintsNamingTheWorst) {
   State state = scene.initial;
   state.x(2, 1) -= 1e-6;  // stretches link 1 by 1e-6 m, shortens link 2 by 1e-6 m
   state.x(4, 1) -= 3e-6;  // stretches link 3 by 3e-6 m: the largest
-  auto solver = make_reference_solver(dae_options(1e-8, 1e-10), scene.model);
+  auto solver = make_solver(dae_options(1e-8, 1e-10), scene.model);
   expect_throw_naming<std::invalid_argument>(
       [&] { solver->step(scene.model, state, 0.01); },
       {"constraint 3 (distance, particles 3 4", "|C| = 3e-06"});
@@ -804,7 +805,7 @@ TEST(RefDae, RefusesInitialPositionsOffTheConstraintsNamingTheWorst) {
 
 TEST(RefDae, NonPositiveTimeStepThrows) {
   const Scene scene = pendulum(0.5);
-  auto solver = make_reference_solver(dae_options(), scene.model);
+  auto solver = make_solver(dae_options(), scene.model);
   State state = scene.initial;
   for (const double dt : {0.0, -0.01, std::nan("")})
     expect_throw_naming<std::invalid_argument>([&] { solver->step(scene.model, state, dt); },
@@ -818,7 +819,7 @@ TEST(RefDae, NonPositiveTimeStepThrows) {
 TEST(RefDae, TwoRunsAreIdentical) {
   const Scene scene = chain(5, Vec3(std::sqrt(0.5), -std::sqrt(0.5), 0.0));
   const auto run = [&] {
-    auto solver = make_reference_solver(dae_options(1e-8, 1e-10), scene.model);
+    auto solver = make_solver(dae_options(1e-8, 1e-10), scene.model);
     State s = scene.initial;
     for (int k = 0; k < 100; ++k) solver->step(scene.model, s, 0.01);
     return s;
@@ -835,8 +836,8 @@ TEST(RefDae, TwoRunsAreIdentical) {
 // from it: the result is what a fresh solver gives from that state.
 TEST(RefDae, RestartsFromAStateItDidNotWrite) {
   const Scene scene = chain(3, Vec3(1.0, 0.0, 0.0));
-  auto fresh = make_reference_solver(dae_options(1e-8, 1e-10), scene.model);
-  auto reused = make_reference_solver(dae_options(1e-8, 1e-10), scene.model);
+  auto fresh = make_solver(dae_options(1e-8, 1e-10), scene.model);
+  auto reused = make_solver(dae_options(1e-8, 1e-10), scene.model);
   State other = scene.initial;
   for (int k = 0; k < 37; ++k) reused->step(scene.model, other, 0.01);
   State a = scene.initial, b = scene.initial;
@@ -851,7 +852,7 @@ TEST(RefDae, RestartsFromAStateItDidNotWrite) {
 
 TEST(RefDae, ReportIsFilled) {
   const Scene scene = pendulum(1.0);
-  auto solver = make_reference_solver(dae_options(1e-8, 1e-10), scene.model);
+  auto solver = make_solver(dae_options(1e-8, 1e-10), scene.model);
   EXPECT_EQ(solver->name(), "ref-dae");
   State state = scene.initial;
   long steps = 0, newton = 0, setups = 0, solves = 0;

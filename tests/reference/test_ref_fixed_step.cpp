@@ -3,6 +3,7 @@
 // references.md item 2; free fall: x_{n+1} = x_n + h v_{n+1}, v_{n+1} = v_n + h g), ref-sdirk2
 // is second order, through hand-written systems and catalog scenes; step counts, report fields,
 // determinism and refusals.
+#include "catalog/solver_catalog.hpp"
 #include "reference/ref_fixed_step.hpp"
 
 #include <gtest/gtest.h>

@@ -2,6 +2,7 @@
 // stretched by alpha times the weight below it, references.md item 5), convergence from a far
 // start thanks to the line search (and failure without it), the projected-Newton fallback on a
 // singular stiffness, report fields, zero velocities, refusals.
+#include "catalog/solver_catalog.hpp"
 #include "reference/ref_static.hpp"
 
 #include <gtest/gtest.h>

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "core/fem.hpp"
 #include "core/generators.hpp"

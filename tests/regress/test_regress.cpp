@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/constraint_functions.hpp"
 #include "regress/regress.hpp"
 #include "solver_api/solver.hpp"

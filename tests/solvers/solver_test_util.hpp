@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/model.hpp"
 #include "core/state.hpp"
 #include "solver_api/options.hpp"

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/fem.hpp"
 #include "core/generators.hpp"
 #include "solver_test_util.hpp"

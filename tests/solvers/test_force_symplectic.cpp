@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "core/fem.hpp"
 #include "metrics/metrics.hpp"
@@ -454,7 +455,7 @@ TEST(ForceSymplectic, RunsAreBitForBitRepeatable) {
 
 TEST(ForceSymplectic, IsRegisteredAndReportsItsStep) {
   bool listed = false;
-  for (const SolverInfo& info : solver_catalog())
+  for (const SolverEntry& info : solver_catalog())
     listed = listed || (info.name == "force-symplectic" && !info.doc.empty());
   EXPECT_TRUE(listed);
   const Scene scene = catalog_scene("hanging_chain");  // compliance 1e-8 m/N: accepted

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <set>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/constraint_functions.hpp"
 #include "solver_test_util.hpp"
 #include "solvers/ordering.hpp"

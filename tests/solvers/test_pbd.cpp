@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/constraint_functions.hpp"
 #include "solver_test_util.hpp"
 

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/constraint_functions.hpp"
 #include "solver_test_util.hpp"
 #include "solvers/pbd_seed.hpp"

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "catalog/solver_catalog.hpp"
 #include "solver_test_util.hpp"
 #include "solvers/step_common.hpp"
 

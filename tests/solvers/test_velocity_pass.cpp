@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "catalog/solver_catalog.hpp"
 #include "solver_test_util.hpp"
 #include "solver_api/velocity_pass.hpp"
 

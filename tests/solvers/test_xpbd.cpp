@@ -5,6 +5,7 @@
 #include <cmath>
 #include <complex>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/constraint_functions.hpp"
 #include "solver_test_util.hpp"
 

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "catalog/solver_catalog.hpp"
 #include "core/generators.hpp"
 #include "core/state.hpp"
 #include "metrics/metrics.hpp"

@@ -1,24 +1,74 @@
-// Tests of solvers/registry.cpp: the catalogue, option validation, dt checks, determinism.
+// Tests of catalog/solver_catalog.cpp: the catalogue, its capabilities against what each
+// factory accepts, option validation, dt checks, determinism.
 #include <gtest/gtest.h>
 
 #include <cstring>
 #include <stdexcept>
 
-#include "solver_test_util.hpp"
+#include "catalog/solver_catalog.hpp"
+#include "config/config.hpp"
+#include "tests/solvers/solver_test_util.hpp"
 
 namespace pbdbench::test {
 namespace {
 
 // The PBD family's entries of the catalogue (the reference and global solvers, listed after them,
-// have their own tests in tests/reference/ and test_global.cpp; force-symplectic, which refuses
-// rigid constraints, in test_force_symplectic.cpp).
-std::vector<SolverInfo> pbd_family() {
-  std::vector<SolverInfo> out;
-  for (const SolverInfo& info : solver_catalog())
-    if (info.name.rfind("ref-", 0) != 0 && info.name.rfind("global-", 0) != 0 &&
-        info.name != "force-symplectic")
-      out.push_back(info);
+// have their own tests in tests/reference/; force-symplectic, which refuses rigid constraints, in
+// test_force_symplectic.cpp).
+std::vector<SolverEntry> pbd_family() {
+  std::vector<SolverEntry> out;
+  for (const SolverEntry& info : solver_catalog())
+    if (info.family == SolverFamily::Pbd) out.push_back(info);
   return out;
+}
+
+TEST(Catalog, NamesAreUniqueAndEveryRowIsWhole) {
+  const auto& all = solver_catalog();
+  ASSERT_EQ(all.size(), 12u);
+  for (size_t i = 0; i < all.size(); ++i) {
+    EXPECT_FALSE(all[i].doc.empty()) << all[i].name;
+    EXPECT_NE(all[i].make, nullptr) << all[i].name;
+    EXPECT_EQ(find_solver(all[i].name), &all[i]);
+    for (size_t j = 0; j < i; ++j) EXPECT_NE(all[i].name, all[j].name);
+  }
+  EXPECT_EQ(find_solver("verlet"), nullptr);
+}
+
+// The capabilities say what each factory accepts: a solver that claims a capability builds on a
+// model that needs it, one that does not refuses it (std::invalid_argument), so that the table
+// cannot drift from the solvers.
+TEST(Catalog, CapabilitiesAgreeWithTheFactories) {
+  auto scene = [](const std::string& name, const std::vector<std::string>& sets) {
+    std::vector<config::Override> o;
+    for (const std::string& s : sets) o.push_back(config::parse_override(s));
+    return config::build_scene(config::load(name, o));
+  };
+  struct Need {
+    const char* what;
+    bool SolverCapabilities::*can;
+    Model model;
+  };
+  std::vector<Need> needs;
+  // Rigid: a pinned chain of compliance 0 (distance constraints, which ref-dae simulates).
+  needs.push_back({"rigid", &SolverCapabilities::rigid, chain_model(3, 0.1, 1.0, Vec3(0, -9.81, 0))});
+  // Contacts: a particle above a ground plane (no constraint).
+  needs.push_back({"contacts", &SolverCapabilities::contacts, scene("particle_on_ground", {}).model});
+  // FEM: the FEM cantilever (stable neo-Hookean elements).
+  needs.push_back({"fem", &SolverCapabilities::fem, scene("cantilever_fem", {}).model});
+  ASSERT_FALSE(needs[1].model.planes.empty());
+  ASSERT_FALSE(needs[2].model.elements.empty());
+  for (const SolverEntry& e : solver_catalog())
+    for (const Need& n : needs) {
+      SolverOptions o;
+      o.name = e.name;
+      bool built = true;
+      try {
+        (void)make_solver(o, n.model);
+      } catch (const std::invalid_argument&) {
+        built = false;
+      }
+      EXPECT_EQ(built, e.can.*(n.can)) << e.name << " on a model with " << n.what;
+    }
 }
 
 TEST(Registry, CatalogueListsTheThreeSolversFirst) {
@@ -29,7 +79,7 @@ TEST(Registry, CatalogueListsTheThreeSolversFirst) {
   EXPECT_EQ(all[2].name, "xpbd");
   const auto cat = pbd_family();
   ASSERT_EQ(cat.size(), 3u);
-  for (const SolverInfo& info : cat) {
+  for (const SolverEntry& info : cat) {
     const Model m = chain_model(2, 0.1, 1.0, Vec3::Zero());
     EXPECT_EQ(make_solver(options_for(info.name), m)->name(), info.name);
     EXPECT_FALSE(info.doc.empty());
@@ -83,7 +133,7 @@ TEST(Registry, BadOptionsNameTheField) {
 
 TEST(Registry, DtMustBePositive) {
   const Model m = chain_model(2, 0.1, 1.0, Vec3(0, -9.81, 0));
-  for (const SolverInfo& info : pbd_family()) {
+  for (const SolverEntry& info : pbd_family()) {
     auto sv = make_solver(options_for(info.name), m);
     State s = rest_state(m);
     for (double dt : {0.0, -0.01, std::nan("")})
@@ -135,7 +185,7 @@ Model busy_model() {
 
 TEST(Registry, EveryRunIsDeterministic) {
   const Model m = busy_model();
-  for (const SolverInfo& info : pbd_family()) {
+  for (const SolverEntry& info : pbd_family()) {
     for (ProjectionOrder order : all_orders()) {
       State runs[2];
       for (State& s : runs) {
@@ -168,7 +218,7 @@ TEST(Registry, EveryRunIsDeterministic) {
 
 TEST(Registry, ReportFieldsAreFilled) {
   const Model m = busy_model();
-  for (const SolverInfo& info : pbd_family()) {
+  for (const SolverEntry& info : pbd_family()) {
     SolverOptions o = options_for(info.name, 3, 2);
     o.contact_margin = 0.02;
     auto sv = make_solver(o, m);
