@@ -911,73 +911,29 @@ std::string Config::to_toml() const {
 namespace detail {
 
 void set_solver_option(SolverOptions& o, const std::string& path, const Value& value) {
-  auto number = [&]() {
-    if (const auto* i = std::get_if<std::int64_t>(&value)) return static_cast<double>(*i);
-    return std::get<double>(value);
+  const OptionRow* row = find_solver_option(path);
+  if (row == nullptr) throw std::invalid_argument("'" + path + "' is not a solver key");
+  struct ToOption {
+    OptionValue operator()(bool v) const { return v; }
+    OptionValue operator()(std::int64_t v) const { return v; }
+    OptionValue operator()(double v) const { return v; }
+    OptionValue operator()(const std::string& v) const { return v; }
+    OptionValue operator()(const std::vector<std::string>& v) const { return v; }
+    OptionValue operator()(const std::vector<double>&) const { return wrong(); }
+    OptionValue operator()(const std::vector<std::int64_t>&) const { return wrong(); }
+    [[noreturn]] static OptionValue wrong() {
+      throw std::invalid_argument("a list of numbers is not the value of a solver option");
+    }
   };
-  auto whole = [&]() { return std::get<std::int64_t>(value); };
-  auto flag = [&]() { return std::get<bool>(value); };
-  if (path == "solver.name") o.name = std::get<std::string>(value);
-  else if (path == "solver.iterations") o.iterations = static_cast<int>(whole());
-  else if (path == "solver.substeps") o.substeps = static_cast<int>(whole());
-  else if (path == "solver.order") {
-    if (!parse_projection_order(std::get<std::string>(value), o.order))
-      throw std::invalid_argument("solver.order: unknown order '" + std::get<std::string>(value) + "'");
-  } else if (path == "solver.shuffle_seed") o.shuffle_seed = static_cast<std::uint64_t>(whole());
-  else if (path == "solver.jacobi_relaxation") o.jacobi_relaxation = number();
-  else if (path == "solver.jacobi_averaging") o.jacobi_averaging = flag();
-  else if (path == "solver.contact_margin") o.contact_margin = number();
-  else if (path == "solver.precision") {
-    if (!parse_precision(std::get<std::string>(value), o.precision))
-      throw std::invalid_argument("solver.precision: unknown precision '" +
-                                  std::get<std::string>(value) + "'");
-  } else if (path == "solver.threads") o.threads = static_cast<int>(whole());
-  else if (path == "solver.pbd.stiffness_correction") o.pbd_stiffness_correction = flag();
-  else if (path == "solver.pbd.velocity_damping") o.pbd_velocity_damping = number();
-  else if (path == "solver.xpbd.residuals") o.xpbd_residuals = flag();
-  else if (path == "solver.force.contact_stiffness") o.force_contact_stiffness = number();
-  else if (path == "solver.force.contact_damping") o.force_contact_damping = number();
-  else if (path == "solver.seed.damping") o.seed_damping = number();
-  else if (path == "solver.seed.damping_rescale") o.seed_damping_rescale = flag();
-  else if (path == "solver.seed.gravity_rescale") o.seed_gravity_rescale = flag();
-  else if (path == "solver.seed.reference_dt") o.seed_reference_dt = number();
-  else if (path == "solver.seed.restitution") o.seed_restitution = number();
-  else if (path == "solver.seed.fixes") o.seed_fixes = std::get<std::vector<std::string>>(value);
-  else if (path == "solver.seed.iteration_schedule") o.seed_iteration_schedule = std::get<std::string>(value);
-  else if (path == "solver.seed.fast_speed") o.seed_fast_speed = number();
-  else if (path == "solver.seed.backup") o.seed_backup = std::get<std::string>(value);
-  else if (path == "solver.seed.dynamic_inverse_mass") o.seed_dynamic_inverse_mass = flag();
-  else if (path == "solver.seed.graded_inverse_mass") o.seed_graded_inverse_mass = flag();
-  else if (path == "solver.ref.rtol") o.ref_rtol = number();
-  else if (path == "solver.ref.atol") o.ref_atol = number();
-  else if (path == "solver.ref.atol_velocity") o.ref_atol_velocity = number();
-  else if (path == "solver.ref.linear_solver") o.ref_linear_solver = std::get<std::string>(value);
-  else if (path == "solver.ref.max_steps") o.ref_max_steps = static_cast<long>(whole());
-  else if (path == "solver.ref.max_newton") o.ref_max_newton = static_cast<int>(whole());
-  else if (path == "solver.ref.ignore_colliders") o.ref_ignore_colliders = flag();
-  else if (path == "solver.ref.barrier_distance") o.ref_barrier_distance = number();
-  else if (path == "solver.ref.barrier_stiffness") o.ref_barrier_stiffness = number();
-  else if (path == "solver.ref.friction_velocity") o.ref_friction_velocity = number();
-  else if (path == "solver.global.tolerance") o.global_tolerance = number();
-  else if (path == "solver.global.max_iterations") o.global_max_iterations = static_cast<int>(whole());
-  else if (path == "solver.global.regularization") o.global_regularization = number();
-  else if (path == "solver.global.cg_preconditioner") o.global_cg_preconditioner = std::get<std::string>(value);
-  else if (path == "solver.global.matrix_free") o.global_matrix_free = flag();
-  else if (path == "solver.global.cg_tolerance") o.global_cg_tolerance = number();
-  else if (path == "solver.global.cg_max_iterations") o.global_cg_max_iterations = static_cast<int>(whole());
-  else if (path == "solver.global.ceres_method") o.global_ceres_method = std::get<std::string>(value);
-  else throw std::invalid_argument("'" + path + "' is not a solver key");
+  row->set(o, std::visit(ToOption{}, value));
 }
 
 }  // namespace detail
 
 SolverOptions solver_options(const Config& config) {
   SolverOptions o;
-  for (const KeySpec& k : common_keys()) {
-    if (k.path.rfind("solver.", 0) != 0) continue;
-    const Entry& e = config.at(k.path);
-    detail::set_solver_option(o, k.path, e.value);
-  }
+  for (const OptionRow& r : solver_option_rows())
+    detail::set_solver_option(o, r.key, config.at(r.key).value);
   if (const std::string problem = o.validate(); !problem.empty())
     throw ConfigError(Source{config.file.string(), 0}, "solver",
                       "the solver options are invalid: " + problem);

@@ -47,7 +47,6 @@ Range at_least(double v) { return {v, 1e308, false, false}; }
 Range above(double v) { return {v, 1e308, true, false}; }
 Range within(double lo, double hi) { return {lo, hi, false, false}; }
 Range above_upto(double lo, double hi) { return {lo, hi, true, false}; }
-Range within_open(double lo, double hi) { return {lo, hi, true, true}; }
 
 KeySpec make(std::string path, Type type, Value def, std::string units, Range r, std::string doc) {
   KeySpec k;
@@ -93,13 +92,6 @@ KeySpec ints(std::string path, std::vector<std::int64_t> def, std::size_t length
   k.length = length;
   return k;
 }
-KeySpec strings(std::string path, std::vector<std::string> def, std::vector<std::string> choices,
-                std::string doc) {
-  KeySpec k = make(std::move(path), Type::StringList, std::move(def), "", kAny, std::move(doc));
-  k.choices = std::move(choices);
-  return k;
-}
-
 void append(std::vector<KeySpec>& to, std::vector<KeySpec> more) {
   for (KeySpec& k : more) to.push_back(std::move(k));
 }
@@ -198,11 +190,33 @@ std::vector<std::string> shadow_solver_names() {
   return names;
 }
 
-std::vector<std::string> order_names() {
-  std::vector<std::string> names;
-  for (int i = 0; i < kProjectionOrderCount; ++i)
-    names.emplace_back(to_string(static_cast<ProjectionOrder>(i)));
-  return names;
+// The [solver] keys, one per option row of solver_api/options.hpp: key, type, default (the
+// row's value in SolverOptions{}), units, bounds, choices and doc all come from the row;
+// solver.name's choices are the catalogue's names.
+std::vector<KeySpec> solver_keys() {
+  const SolverOptions defaults;
+  std::vector<KeySpec> keys;
+  for (const OptionRow& r : solver_option_rows()) {
+    KeySpec k;
+    k.path = r.key;
+    switch (r.type) {
+      case OptionType::Bool: k.type = Type::Bool; break;
+      case OptionType::Int: k.type = Type::Int; break;
+      case OptionType::Float: k.type = Type::Float; break;
+      case OptionType::String: k.type = Type::String; break;
+      case OptionType::StringList: k.type = Type::StringList; break;
+    }
+    k.default_value = std::visit([](const auto& v) -> Value { return v; }, r.get(defaults));
+    k.units = r.units;
+    k.min = r.bounds.min;
+    k.max = r.bounds.max;
+    k.min_exclusive = r.bounds.min_exclusive;
+    k.max_exclusive = r.bounds.max_exclusive;
+    k.choices = r.key == "solver.name" ? solver_names() : r.choices;
+    k.doc = r.doc;
+    keys.push_back(std::move(k));
+  }
+  return keys;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -461,11 +475,10 @@ const std::vector<SceneKindInfo>& scene_kinds() {
 
 const std::vector<KeySpec>& common_keys() {
   static const std::vector<KeySpec> keys = [] {
-    const SolverOptions so;
     const ExplosionLimits lim;
     const RunOptions run;
     const Model model;
-    return std::vector<KeySpec>{
+    std::vector<KeySpec> keys{
         text("name", "", {}, "scenario name, used in run files and plots; default: the file's stem"),
         text("description", "", {}, "what the scenario shows, in one line"),
         vec3("gravity", model.gravity, "m/s^2", kAny, "gravitational acceleration"),
@@ -474,118 +487,10 @@ const std::vector<KeySpec>& common_keys() {
         real("time.dt", run.dt, "s", above_upto(0, 1), "time step of one solver step"),
         real("time.duration", run.duration, "s", above_upto(0, 1e6),
              "simulated time; steps = round(duration / dt)"),
-        text("solver.name", so.name, solver_names(),
-             "solver: pbd-seed (the seed article's listing), pbd (Mueller et al. 2007), xpbd "
-             "(Macklin et al. 2016), force-symplectic (explicit symplectic Euler, penalty "
-             "contacts), or a reference integrator ref-* (`pbdbench list`)"),
-        integer("solver.iterations", so.iterations, within(1, 100000),
-                "projection sweeps per substep"),
-        integer("solver.substeps", so.substeps, within(1, 100000),
-                "substeps per step (Macklin et al. 2019)"),
-        text("solver.order", to_string(so.order), order_names(),
-             "order of a sweep: sequential, reversed, shuffled, colored, grouped_shuffled, "
-             "bottom_up (Gauss-Seidel) or jacobi (docs/solvers.md)"),
-        integer("solver.shuffle_seed", static_cast<std::int64_t>(so.shuffle_seed), at_least(0),
-                "seed of the shuffled and grouped_shuffled orders"),
-        real("solver.jacobi_relaxation", so.jacobi_relaxation, "1", above_upto(0, 2),
-             "relaxation omega of the jacobi order"),
-        boolean("solver.jacobi_averaging", so.jacobi_averaging,
-                "jacobi: divide each correction by the particle's constraint count"),
-        real("solver.contact_margin", so.contact_margin, "m", at_least(0),
-             "contacts closer than this at the predicted positions are built each substep"),
-        text("solver.precision", to_string(so.precision), {"double", "float"},
-             "pbd, xpbd: the precision they compute in: double, or float (the projections in "
-             "float32, positions, velocities, predictions and multipliers stored in float32; "
-             "docs/solvers.md); pbd-seed is float by its departure D10"),
-        integer("solver.threads", so.threads, within(0, 1024),
-                "pbd, xpbd: threads of the colored and Jacobi sweeps (the results are the same "
-                "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
-                "1 by default (docs/performance.md)"),
-        boolean("solver.pbd.stiffness_correction", so.pbd_stiffness_correction,
-                "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"),
-        real("solver.pbd.velocity_damping", so.pbd_velocity_damping, "1", within(0, 1),
-             "pbd: damping of the motion relative to the rigid modes (Mueller et al. 2007, sec. 3.5)"),
-        boolean("solver.xpbd.residuals", so.xpbd_residuals,
-                "xpbd: compute the residuals g and h at the end of each step"),
-        real("solver.force.contact_stiffness", so.force_contact_stiffness, "N/m", above(0),
-             "force-symplectic: penalty stiffness k_c of a contact, force k_c (-C) while C < 0"),
-        real("solver.force.contact_damping", so.force_contact_damping, "N s/m", at_least(0),
-             "force-symplectic: contact damping d_c, force -d_c v_n on the relative normal "
-             "velocity while C < 0 (approaching or separating; the contact force never pulls)"),
-        real("solver.seed.damping", so.seed_damping, "1", within(0, 1),
-             "pbd-seed: velocity damping factor alpha of step 4"),
-        boolean("solver.seed.damping_rescale", so.seed_damping_rescale,
-                "pbd-seed: use alpha^(dt / reference_dt)"),
-        boolean("solver.seed.gravity_rescale", so.seed_gravity_rescale,
-                "pbd-seed: scale gravity by reference_dt / dt"),
-        real("solver.seed.reference_dt", so.seed_reference_dt, "s", above(0),
-             "pbd-seed: the time step alpha was tuned at"),
-        real("solver.seed.restitution", so.seed_restitution, "1", within(0, 1),
-             "pbd-seed: restitution of the listing's collision response"),
-        strings("solver.seed.fixes", so.seed_fixes, seed_departure_ids(),
-                "pbd-seed: ids of the departures from Mueller et al. 2007 to correct"),
-        text("solver.seed.iteration_schedule", so.seed_iteration_schedule,
-             {"fixed", "dynamic", "mixed"},
-             "pbd-seed: sweeps per substep: fixed (solver.iterations), dynamic (article 4.1: 10 on "
-             "the run's first step, then 3, or 5 when the fastest particle is faster than "
-             "fast_speed) or mixed (5.3: 1 when the fastest particle is faster than fast_speed, "
-             "else 3); speeds at the start of the step"),
-        real("solver.seed.fast_speed", so.seed_fast_speed, "m/s", above(0),
-             "pbd-seed: the speed above which a particle is fast (iteration_schedule, "
-             "dynamic_inverse_mass)"),
-        text("solver.seed.backup", so.seed_backup, {"before_forces", "after_damping"},
-             "pbd-seed: where old_pos is backed up: before_forces (step 1, the listing) or "
-             "after_damping (after step 4, the placement article 3.1a warns against: step 5 then "
-             "sets every velocity to 0)"),
-        boolean("solver.seed.dynamic_inverse_mass", so.seed_dynamic_inverse_mass,
-                "pbd-seed: article 4.2, each step every dynamic particle's inverse mass is 0.1 "
-                "(1/kg) when it is faster than fast_speed, else 0.3; pinned stay 0"),
-        boolean("solver.seed.graded_inverse_mass", so.seed_graded_inverse_mass,
-                "pbd-seed: article 4.2, inverse masses graded from the pins: 0.3 min(1, d / d_c) "
-                "(1/kg), d the hop distance from the nearest pin over constraint edges, d_c half "
-                "the largest (at least 1); needs a pin"),
-        real("solver.ref.rtol", so.ref_rtol, "1", within_open(0, 1),
-             "reference: relative tolerance of the adaptive integrators and of every Newton solve"),
-        real("solver.ref.atol", so.ref_atol, "m", above(0),
-             "reference: absolute tolerance of positions"),
-        real("solver.ref.atol_velocity", so.ref_atol_velocity, "m/s", above(0),
-             "ref-bdf: absolute tolerance of velocities"),
-        text("solver.ref.linear_solver", so.ref_linear_solver, {"reduced", "full"},
-             "ref-bdf, ref-be, ref-sdirk2: Newton systems solved through the n x n reduced matrix "
-             "M + gamma D + gamma^2 K (Cholesky, LU fallback) or by LU on the whole 2n x 2n matrix"),
-        integer("solver.ref.max_steps", so.ref_max_steps, within(1, 1000000000),
-                "reference: internal steps allowed to advance by one output step"),
-        integer("solver.ref.max_newton", so.ref_max_newton, within(1, 100000),
-                "reference: Newton iterations allowed per nonlinear solve"),
-        boolean("solver.ref.ignore_colliders", so.ref_ignore_colliders,
-                "reference: run a scene that has colliders without its contacts (ref-be "
-                "simulates them, the other references refuse them; the run file records this key)"),
-        real("solver.ref.barrier_distance", so.ref_barrier_distance, "m", above(0),
-             "ref-be with contact: d_hat, the IPC barrier acts on gaps below this"),
-        real("solver.ref.barrier_stiffness", so.ref_barrier_stiffness, "N/m", at_least(0),
-             "ref-be with contact: kappa, the barrier's stiffness; 0 = the heaviest dynamic "
-             "particle's weight per d_hat"),
-        real("solver.ref.friction_velocity", so.ref_friction_velocity, "m/s", above(0),
-             "ref-be with contact: eps_v, friction is smoothed to 0 below this sliding speed"),
-        real("solver.global.tolerance", so.global_tolerance, "m", above(0),
-             "global-*: converged when the step's KKT residual, in position units, is below this"),
-        integer("solver.global.max_iterations", so.global_max_iterations, within(1, 1000000),
-                "global-*: outer iterations allowed per step (Newton, or Levenberg-Marquardt for "
-                "global-ceres)"),
-        real("solver.global.regularization", so.global_regularization, "1", above_upto(0, 1),
-             "global-*: eta; a rigid constraint or contact r gets the augmented-Lagrangian penalty "
-             "1 / (eta w_r), w_r its generalised inverse mass"),
-        text("solver.global.cg_preconditioner", so.global_cg_preconditioner,
-             {"incomplete_cholesky", "jacobi"}, "global-cg: preconditioner of the assembled matrix"),
-        boolean("solver.global.matrix_free", so.global_matrix_free,
-                "global-cg: apply the Newton matrix term by term, never assembled (Jacobi "
-                "preconditioner)"),
-        real("solver.global.cg_tolerance", so.global_cg_tolerance, "1", within_open(0, 1),
-             "global-cg: relative residual at which each conjugate-gradient solve stops"),
-        integer("solver.global.cg_max_iterations", so.global_cg_max_iterations,
-                within(1, 100000000), "global-cg: conjugate-gradient iterations per solve"),
-        text("solver.global.ceres_method", so.global_ceres_method,
-             {"levenberg_marquardt", "dogleg"}, "global-ceres: the trust-region strategy"),
+    };
+    // The solver keys: one per option row (solver_api/options.hpp).
+    append(keys, solver_keys());
+    append(keys, {
         text("shadow.solver", "", shadow_solver_names(),
              "a global solver (global-cholmod, global-cg, global-ceres) run as a shadow: from the "
              "start of every k-th step it solves the converged step without touching the run, "
@@ -632,7 +537,8 @@ const std::vector<KeySpec>& common_keys() {
                 "relax the initial configuration over this many steps: the solver's rest values "
                 "go linearly from the initial state's (C + rest) to the model's (fraction "
                 "(k+1)/N at step k); pbd, xpbd and pbd-seed only; 0: none"),
-    };
+    });
+    return keys;
   }();
   return keys;
 }

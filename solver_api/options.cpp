@@ -5,7 +5,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
+#include <utility>
 
 #include <sched.h>
 
@@ -15,13 +17,6 @@ namespace {
 
 constexpr std::array<const char*, kProjectionOrderCount> kOrderNames = {
     "sequential", "reversed", "shuffled", "colored", "jacobi", "grouped_shuffled", "bottom_up"};
-
-template <class T>
-std::string out_of_range(const char* field, T value, const char* relation, T bound) {
-  std::ostringstream s;
-  s << field << " = " << value << " is " << relation << " " << bound;
-  return s.str();
-}
 
 }  // namespace
 
@@ -72,94 +67,285 @@ const std::vector<std::string>& seed_departure_ids() {
   return ids;
 }
 
+// ---------------------------------------------------------------------------------------------
+// The option rows (solver_option_rows): each option declared once.
+
+namespace {
+
+OptionBounds any_value() { return {}; }
+OptionBounds at_least(double v) { return {v, 1e308, false, false}; }
+OptionBounds above(double v) { return {v, 1e308, true, false}; }
+OptionBounds within(double lo, double hi) { return {lo, hi, false, false}; }
+OptionBounds above_upto(double lo, double hi) { return {lo, hi, true, false}; }
+OptionBounds within_open(double lo, double hi) { return {lo, hi, true, true}; }
+
+OptionRow row(std::string key, OptionType type, std::string units, OptionBounds bounds,
+              std::vector<std::string> choices, std::string doc) {
+  OptionRow r;
+  r.key = std::move(key);
+  r.type = type;
+  r.units = std::move(units);
+  r.bounds = bounds;
+  r.choices = std::move(choices);
+  r.doc = std::move(doc);
+  return r;
+}
+
+// A number read from an OptionValue that holds an integer or a double.
+double number_of(const OptionValue& v) {
+  if (const auto* i = std::get_if<std::int64_t>(&v)) return static_cast<double>(*i);
+  return std::get<double>(v);
+}
+
+OptionRow real(std::string key, double SolverOptions::*field, std::string units, OptionBounds b,
+               std::string doc) {
+  OptionRow r = row(std::move(key), OptionType::Float, std::move(units), b, {}, std::move(doc));
+  r.get = [field](const SolverOptions& o) -> OptionValue { return o.*field; };
+  r.set = [field](SolverOptions& o, const OptionValue& v) { o.*field = number_of(v); };
+  return r;
+}
+
+template <class Int>
+OptionRow integer(std::string key, Int SolverOptions::*field, OptionBounds b, std::string doc) {
+  OptionRow r = row(std::move(key), OptionType::Int, "", b, {}, std::move(doc));
+  r.get = [field](const SolverOptions& o) -> OptionValue { return static_cast<std::int64_t>(o.*field); };
+  r.set = [field](SolverOptions& o, const OptionValue& v) {
+    o.*field = static_cast<Int>(std::get<std::int64_t>(v));
+  };
+  return r;
+}
+
+OptionRow boolean(std::string key, bool SolverOptions::*field, std::string doc) {
+  OptionRow r = row(std::move(key), OptionType::Bool, "", any_value(), {}, std::move(doc));
+  r.get = [field](const SolverOptions& o) -> OptionValue { return o.*field; };
+  r.set = [field](SolverOptions& o, const OptionValue& v) { o.*field = std::get<bool>(v); };
+  return r;
+}
+
+OptionRow text(std::string key, std::string SolverOptions::*field,
+               std::vector<std::string> choices, std::string doc) {
+  OptionRow r = row(std::move(key), OptionType::String, "", any_value(), std::move(choices),
+                    std::move(doc));
+  r.get = [field](const SolverOptions& o) -> OptionValue { return o.*field; };
+  r.set = [field](SolverOptions& o, const OptionValue& v) { o.*field = std::get<std::string>(v); };
+  return r;
+}
+
+// An enum stored as its name: to_string and parse_* of the enum.
+template <class Enum>
+OptionRow named(std::string key, Enum SolverOptions::*field, std::vector<std::string> choices,
+                bool (*parse)(const std::string&, Enum&), std::string doc) {
+  OptionRow r = row(std::move(key), OptionType::String, "", any_value(), std::move(choices),
+                    std::move(doc));
+  r.get = [field](const SolverOptions& o) -> OptionValue { return std::string(to_string(o.*field)); };
+  const std::string path = r.key;
+  r.set = [field, parse, path](SolverOptions& o, const OptionValue& v) {
+    const std::string& name = std::get<std::string>(v);
+    if (!parse(name, o.*field))
+      throw std::invalid_argument(path + ": unknown value '" + name + "'");
+  };
+  return r;
+}
+
+OptionRow strings(std::string key, std::vector<std::string> SolverOptions::*field,
+                  std::vector<std::string> choices, std::string doc) {
+  OptionRow r = row(std::move(key), OptionType::StringList, "", any_value(), std::move(choices),
+                    std::move(doc));
+  r.get = [field](const SolverOptions& o) -> OptionValue { return o.*field; };
+  r.set = [field](SolverOptions& o, const OptionValue& v) {
+    o.*field = std::get<std::vector<std::string>>(v);
+  };
+  return r;
+}
+
+std::vector<std::string> order_names() {
+  std::vector<std::string> names;
+  for (const char* n : kOrderNames) names.emplace_back(n);
+  return names;
+}
+
+std::string format_number(double v, OptionType type) {
+  std::ostringstream s;
+  if (type == OptionType::Int) s << static_cast<long long>(v);
+  else s << v;
+  return s.str();
+}
+
+// The problem with one row's value, or "".
+std::string check_row(const OptionRow& r, const OptionValue& value) {
+  if (r.type == OptionType::Int || r.type == OptionType::Float) {
+    const double v = number_of(value);
+    const std::string shown = r.key + " = " + format_number(v, r.type);
+    if (!std::isfinite(v)) return shown + " is not a finite number";
+    const OptionBounds& b = r.bounds;
+    if (b.min_exclusive ? !(v > b.min) : !(v >= b.min))
+      return shown + (b.min_exclusive ? " must be greater than " : " is below the minimum ") +
+             format_number(b.min, r.type);
+    if (b.max_exclusive ? !(v < b.max) : !(v <= b.max))
+      return shown + (b.max_exclusive ? " must be less than " : " is above the maximum ") +
+             format_number(b.max, r.type);
+    return {};
+  }
+  if (r.choices.empty()) return {};
+  auto allowed = [&](const std::string& s) {
+    return std::find(r.choices.begin(), r.choices.end(), s) != r.choices.end();
+  };
+  std::string list;
+  for (const std::string& c : r.choices) list += (list.empty() ? "" : ", ") + c;
+  if (r.type == OptionType::String) {
+    const std::string& s = std::get<std::string>(value);
+    if (!allowed(s)) return r.key + " = '" + s + "' is not one of " + list;
+  } else if (r.type == OptionType::StringList) {
+    for (const std::string& s : std::get<std::vector<std::string>>(value))
+      if (!allowed(s)) return r.key + ": '" + s + "' is not one of " + list;
+  }
+  return {};
+}
+
+std::vector<OptionRow> make_rows() {
+  using S = SolverOptions;
+  std::vector<OptionRow> rows;
+  auto add = [&rows](OptionRow r) { rows.push_back(std::move(r)); };
+  // Keys every solver reads.
+  add(text("solver.name", &S::name, {},
+           "solver: pbd-seed (the seed article's listing), pbd (Mueller et al. 2007), xpbd "
+           "(Macklin et al. 2016), force-symplectic (explicit symplectic Euler, penalty "
+           "contacts), or a reference integrator ref-* (`pbdbench list`)"));
+  add(integer("solver.iterations", &S::iterations, within(1, 100000), "projection sweeps per substep"));
+  add(integer("solver.substeps", &S::substeps, within(1, 100000),
+              "substeps per step (Macklin et al. 2019)"));
+  add(named("solver.order", &S::order, order_names(), parse_projection_order,
+            "order of a sweep: sequential, reversed, shuffled, colored, grouped_shuffled, "
+            "bottom_up (Gauss-Seidel) or jacobi (docs/solvers.md)"));
+  add(integer("solver.shuffle_seed", &S::shuffle_seed, at_least(0),
+              "seed of the shuffled and grouped_shuffled orders"));
+  add(real("solver.jacobi_relaxation", &S::jacobi_relaxation, "1", above_upto(0, 2),
+           "relaxation omega of the jacobi order"));
+  add(boolean("solver.jacobi_averaging", &S::jacobi_averaging,
+              "jacobi: divide each correction by the particle's constraint count"));
+  add(real("solver.contact_margin", &S::contact_margin, "m", at_least(0),
+           "contacts closer than this at the predicted positions are built each substep"));
+  add(named("solver.precision", &S::precision, {"double", "float"}, parse_precision,
+            "pbd, xpbd: the precision they compute in: double, or float (the projections in "
+            "float32, positions, velocities, predictions and multipliers stored in float32; "
+            "docs/solvers.md); pbd-seed is float by its departure D10"));
+  add(integer("solver.threads", &S::threads, within(0, 1024),
+              "pbd, xpbd: threads of the colored and Jacobi sweeps (the results are the same "
+              "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
+              "1 by default (docs/performance.md)"));
+  // [solver.pbd], [solver.xpbd]
+  add(boolean("solver.pbd.stiffness_correction", &S::pbd_stiffness_correction,
+              "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"));
+  add(real("solver.pbd.velocity_damping", &S::pbd_velocity_damping, "1", within(0, 1),
+           "pbd: damping of the motion relative to the rigid modes (Mueller et al. 2007, sec. 3.5)"));
+  add(boolean("solver.xpbd.residuals", &S::xpbd_residuals,
+              "xpbd: compute the residuals g and h at the end of each step"));
+  // [solver.force]
+  add(real("solver.force.contact_stiffness", &S::force_contact_stiffness, "N/m", above(0),
+           "force-symplectic: penalty stiffness k_c of a contact, force k_c (-C) while C < 0"));
+  add(real("solver.force.contact_damping", &S::force_contact_damping, "N s/m", at_least(0),
+           "force-symplectic: contact damping d_c, force -d_c v_n on the relative normal "
+           "velocity while C < 0 (approaching or separating; the contact force never pulls)"));
+  // [solver.seed]
+  add(real("solver.seed.damping", &S::seed_damping, "1", within(0, 1),
+           "pbd-seed: velocity damping factor alpha of step 4"));
+  add(boolean("solver.seed.damping_rescale", &S::seed_damping_rescale,
+              "pbd-seed: use alpha^(dt / reference_dt)"));
+  add(boolean("solver.seed.gravity_rescale", &S::seed_gravity_rescale,
+              "pbd-seed: scale gravity by reference_dt / dt"));
+  add(real("solver.seed.reference_dt", &S::seed_reference_dt, "s", above(0),
+           "pbd-seed: the time step alpha was tuned at"));
+  add(real("solver.seed.restitution", &S::seed_restitution, "1", within(0, 1),
+           "pbd-seed: restitution of the listing's collision response"));
+  add(strings("solver.seed.fixes", &S::seed_fixes, seed_departure_ids(),
+              "pbd-seed: ids of the departures from Mueller et al. 2007 to correct"));
+  add(text("solver.seed.iteration_schedule", &S::seed_iteration_schedule,
+           {"fixed", "dynamic", "mixed"},
+           "pbd-seed: sweeps per substep: fixed (solver.iterations), dynamic (article 4.1: 10 on "
+           "the run's first step, then 3, or 5 when the fastest particle is faster than "
+           "fast_speed) or mixed (5.3: 1 when the fastest particle is faster than fast_speed, "
+           "else 3); speeds at the start of the step"));
+  add(real("solver.seed.fast_speed", &S::seed_fast_speed, "m/s", above(0),
+           "pbd-seed: the speed above which a particle is fast (iteration_schedule, "
+           "dynamic_inverse_mass)"));
+  add(text("solver.seed.backup", &S::seed_backup, {"before_forces", "after_damping"},
+           "pbd-seed: where old_pos is backed up: before_forces (step 1, the listing) or "
+           "after_damping (after step 4, the placement article 3.1a warns against: step 5 then "
+           "sets every velocity to 0)"));
+  add(boolean("solver.seed.dynamic_inverse_mass", &S::seed_dynamic_inverse_mass,
+              "pbd-seed: article 4.2, each step every dynamic particle's inverse mass is 0.1 "
+              "(1/kg) when it is faster than fast_speed, else 0.3; pinned stay 0"));
+  add(boolean("solver.seed.graded_inverse_mass", &S::seed_graded_inverse_mass,
+              "pbd-seed: article 4.2, inverse masses graded from the pins: 0.3 min(1, d / d_c) "
+              "(1/kg), d the hop distance from the nearest pin over constraint edges, d_c half "
+              "the largest (at least 1); needs a pin"));
+  // [solver.ref]
+  add(real("solver.ref.rtol", &S::ref_rtol, "1", within_open(0, 1),
+           "reference: relative tolerance of the adaptive integrators and of every Newton solve"));
+  add(real("solver.ref.atol", &S::ref_atol, "m", above(0), "reference: absolute tolerance of positions"));
+  add(real("solver.ref.atol_velocity", &S::ref_atol_velocity, "m/s", above(0),
+           "ref-bdf: absolute tolerance of velocities"));
+  add(text("solver.ref.linear_solver", &S::ref_linear_solver, {"reduced", "full"},
+           "ref-bdf, ref-be, ref-sdirk2: Newton systems solved through the n x n reduced matrix "
+           "M + gamma D + gamma^2 K (Cholesky, LU fallback) or by LU on the whole 2n x 2n matrix"));
+  add(integer("solver.ref.max_steps", &S::ref_max_steps, within(1, 1000000000),
+              "reference: internal steps allowed to advance by one output step"));
+  add(integer("solver.ref.max_newton", &S::ref_max_newton, within(1, 100000),
+              "reference: Newton iterations allowed per nonlinear solve"));
+  add(boolean("solver.ref.ignore_colliders", &S::ref_ignore_colliders,
+              "reference: run a scene that has colliders without its contacts (ref-be "
+              "simulates them, the other references refuse them; the run file records this key)"));
+  add(real("solver.ref.barrier_distance", &S::ref_barrier_distance, "m", above(0),
+           "ref-be with contact: d_hat, the IPC barrier acts on gaps below this"));
+  add(real("solver.ref.barrier_stiffness", &S::ref_barrier_stiffness, "N/m", at_least(0),
+           "ref-be with contact: kappa, the barrier's stiffness; 0 = the heaviest dynamic "
+           "particle's weight per d_hat"));
+  add(real("solver.ref.friction_velocity", &S::ref_friction_velocity, "m/s", above(0),
+           "ref-be with contact: eps_v, friction is smoothed to 0 below this sliding speed"));
+  // [solver.global]
+  add(real("solver.global.tolerance", &S::global_tolerance, "m", above(0),
+           "global-*: converged when the step's KKT residual, in position units, is below this"));
+  add(integer("solver.global.max_iterations", &S::global_max_iterations, within(1, 1000000),
+              "global-*: outer iterations allowed per step (Newton, or Levenberg-Marquardt for "
+              "global-ceres)"));
+  add(real("solver.global.regularization", &S::global_regularization, "1", above_upto(0, 1),
+           "global-*: eta; a rigid constraint or contact r gets the augmented-Lagrangian penalty "
+           "1 / (eta w_r), w_r its generalised inverse mass"));
+  add(text("solver.global.cg_preconditioner", &S::global_cg_preconditioner,
+           {"incomplete_cholesky", "jacobi"}, "global-cg: preconditioner of the assembled matrix"));
+  add(boolean("solver.global.matrix_free", &S::global_matrix_free,
+              "global-cg: apply the Newton matrix term by term, never assembled (Jacobi "
+              "preconditioner)"));
+  add(real("solver.global.cg_tolerance", &S::global_cg_tolerance, "1", within_open(0, 1),
+           "global-cg: relative residual at which each conjugate-gradient solve stops"));
+  add(integer("solver.global.cg_max_iterations", &S::global_cg_max_iterations,
+              within(1, 100000000), "global-cg: conjugate-gradient iterations per solve"));
+  add(text("solver.global.ceres_method", &S::global_ceres_method,
+           {"levenberg_marquardt", "dogleg"}, "global-ceres: the trust-region strategy"));
+  return rows;
+}
+
+}  // namespace
+
+const std::vector<OptionRow>& solver_option_rows() {
+  static const std::vector<OptionRow> rows = make_rows();
+  return rows;
+}
+
+const OptionRow* find_solver_option(const std::string& key) {
+  for (const OptionRow& r : solver_option_rows())
+    if (r.key == key) return &r;
+  return nullptr;
+}
+
 std::string SolverOptions::validate() const {
-  // solver.name is checked against the catalogue by make_solver (catalog/) and the schema's choices.
-  if (iterations < 1) return out_of_range("solver.iterations", iterations, "below the minimum", 1);
-  if (iterations > 100000)
-    return out_of_range("solver.iterations", iterations, "above the maximum", 100000);
-  if (substeps < 1) return out_of_range("solver.substeps", substeps, "below the minimum", 1);
-  if (substeps > 100000)
-    return out_of_range("solver.substeps", substeps, "above the maximum", 100000);
-  if (threads < 0) return out_of_range("solver.threads", threads, "below the minimum", 0);
-  if (threads > 1024) return out_of_range("solver.threads", threads, "above the maximum", 1024);
-  if (!(jacobi_relaxation > 0.0))
-    return out_of_range("solver.jacobi_relaxation", jacobi_relaxation, "not above", 0.0);
-  if (!(jacobi_relaxation <= 2.0))
-    return out_of_range("solver.jacobi_relaxation", jacobi_relaxation, "above the maximum", 2.0);
-  if (!(contact_margin >= 0.0) || !std::isfinite(contact_margin))
-    return out_of_range("solver.contact_margin", contact_margin, "below the minimum", 0.0);
-  if (!(pbd_velocity_damping >= 0.0 && pbd_velocity_damping <= 1.0))
-    return "solver.pbd.velocity_damping = " + std::to_string(pbd_velocity_damping) +
-           " is outside [0, 1]";
-  if (!(force_contact_stiffness > 0.0) || !std::isfinite(force_contact_stiffness))
-    return out_of_range("solver.force.contact_stiffness", force_contact_stiffness, "not above", 0.0);
-  if (!(force_contact_damping >= 0.0) || !std::isfinite(force_contact_damping))
-    return out_of_range("solver.force.contact_damping", force_contact_damping, "below the minimum",
-                        0.0);
-  if (!(seed_damping >= 0.0 && seed_damping <= 1.0))
-    return "solver.seed.damping = " + std::to_string(seed_damping) + " is outside [0, 1]";
-  if (!(seed_reference_dt > 0.0) || !std::isfinite(seed_reference_dt))
-    return out_of_range("solver.seed.reference_dt", seed_reference_dt, "not above", 0.0);
-  if (!(seed_restitution >= 0.0 && seed_restitution <= 1.0))
-    return "solver.seed.restitution = " + std::to_string(seed_restitution) + " is outside [0, 1]";
-  if (seed_iteration_schedule != "fixed" && seed_iteration_schedule != "dynamic" &&
-      seed_iteration_schedule != "mixed")
-    return "solver.seed.iteration_schedule = '" + seed_iteration_schedule +
-           "' is not one of fixed, dynamic, mixed";
-  if (!(seed_fast_speed > 0.0) || !std::isfinite(seed_fast_speed))
-    return out_of_range("solver.seed.fast_speed", seed_fast_speed, "not above", 0.0);
-  if (seed_backup != "before_forces" && seed_backup != "after_damping")
-    return "solver.seed.backup = '" + seed_backup + "' is not one of before_forces, after_damping";
+  // solver.name is checked against the catalogue by make_solver (catalog/) and the schema's
+  // choices; every other row by its bounds or choices.
+  for (const OptionRow& r : solver_option_rows())
+    if (std::string problem = check_row(r, r.get(*this)); !problem.empty()) return problem;
   if (seed_dynamic_inverse_mass && seed_graded_inverse_mass)
     return "solver.seed.dynamic_inverse_mass and solver.seed.graded_inverse_mass are both true: "
            "each sets every inverse mass, choose one";
-  if (!(ref_rtol > 0.0 && ref_rtol < 1.0))
-    return "solver.ref.rtol = " + std::to_string(ref_rtol) + " is outside (0, 1)";
-  if (!(ref_atol > 0.0) || !std::isfinite(ref_atol))
-    return out_of_range("solver.ref.atol", ref_atol, "not above", 0.0);
-  if (!(ref_atol_velocity > 0.0) || !std::isfinite(ref_atol_velocity))
-    return out_of_range("solver.ref.atol_velocity", ref_atol_velocity, "not above", 0.0);
-  if (ref_linear_solver != "reduced" && ref_linear_solver != "full")
-    return "solver.ref.linear_solver = '" + ref_linear_solver + "' is not one of reduced, full";
-  if (ref_max_steps < 1) return out_of_range("solver.ref.max_steps", ref_max_steps, "below the minimum", 1L);
-  if (ref_max_steps > 1000000000L)
-    return out_of_range("solver.ref.max_steps", ref_max_steps, "above the maximum", 1000000000L);
-  if (ref_max_newton < 1) return out_of_range("solver.ref.max_newton", ref_max_newton, "below the minimum", 1);
-  if (ref_max_newton > 100000)
-    return out_of_range("solver.ref.max_newton", ref_max_newton, "above the maximum", 100000);
-  if (!(ref_barrier_distance > 0.0) || !std::isfinite(ref_barrier_distance))
-    return out_of_range("solver.ref.barrier_distance", ref_barrier_distance, "not above", 0.0);
-  if (!(ref_barrier_stiffness >= 0.0) || !std::isfinite(ref_barrier_stiffness))
-    return out_of_range("solver.ref.barrier_stiffness", ref_barrier_stiffness, "below", 0.0);
-  if (!(ref_friction_velocity > 0.0) || !std::isfinite(ref_friction_velocity))
-    return out_of_range("solver.ref.friction_velocity", ref_friction_velocity, "not above", 0.0);
-  if (!(global_tolerance > 0.0) || !std::isfinite(global_tolerance))
-    return out_of_range("solver.global.tolerance", global_tolerance, "not above", 0.0);
-  if (global_max_iterations < 1)
-    return out_of_range("solver.global.max_iterations", global_max_iterations, "below the minimum", 1);
-  if (global_max_iterations > 1000000)
-    return out_of_range("solver.global.max_iterations", global_max_iterations, "above the maximum", 1000000);
-  if (!(global_regularization > 0.0 && global_regularization <= 1.0))
-    return "solver.global.regularization = " + std::to_string(global_regularization) +
-           " is outside (0, 1]";
-  if (global_cg_preconditioner != "incomplete_cholesky" && global_cg_preconditioner != "jacobi")
-    return "solver.global.cg_preconditioner = '" + global_cg_preconditioner +
-           "' is not one of incomplete_cholesky, jacobi";
-  if (!(global_cg_tolerance > 0.0 && global_cg_tolerance < 1.0))
-    return "solver.global.cg_tolerance = " + std::to_string(global_cg_tolerance) +
-           " is outside (0, 1)";
-  if (global_cg_max_iterations < 1)
-    return out_of_range("solver.global.cg_max_iterations", global_cg_max_iterations, "below the minimum", 1);
-  if (global_cg_max_iterations > 100000000)
-    return out_of_range("solver.global.cg_max_iterations", global_cg_max_iterations, "above the maximum", 100000000);
-  if (global_ceres_method != "levenberg_marquardt" && global_ceres_method != "dogleg")
-    return "solver.global.ceres_method = '" + global_ceres_method +
-           "' is not one of levenberg_marquardt, dogleg";
-  const auto& ids = seed_departure_ids();
-  for (const std::string& f : seed_fixes)
-    if (std::find(ids.begin(), ids.end(), f) == ids.end())
-      return "solver.seed.fixes: '" + f + "' is not a departure id (D1 ... D" +
-             std::to_string(ids.size()) + ")";
   return {};
 }
 

@@ -1,10 +1,14 @@
-// Options of the PBD-family solvers: flat structs with every default in place, each able to
-// validate itself. The scenario schema (config/) maps the keys of a [solver] table onto these
-// fields one to one; the key path is in each comment.
+// Options of the solvers: a flat struct with every default in place, able to validate itself.
+// Each option is declared once, as a row of solver_option_rows() (options.cpp): its key, type,
+// units, bounds, choices and doc, and how to read and write its field. The scenario schema
+// (config/schema.cpp) makes its entries from the rows, the loader sets the fields through them,
+// and validate() checks the bounds and choices they declare; the key path is in each comment.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <variant>
 #include <vector>
 
 namespace pbdbench {
@@ -167,8 +171,45 @@ struct SolverOptions {
                                       // "levenberg_marquardt" or "dogleg" (global-ceres)
 
   // Returns an empty string when valid, else a message naming the field and the bound broken,
-  // e.g. "solver.iterations = 0 is below the minimum 1".
+  // e.g. "solver.iterations = 0 is below the minimum 1": every row's bounds and choices (except
+  // solver.name's, which the catalogue checks), and the checks across fields.
   std::string validate() const;
 };
+
+// ---------------------------------------------------------------------------------------------
+// The option rows: each [solver] key declared once.
+
+enum class OptionType : std::uint8_t { Bool, Int, Float, String, StringList };
+
+// A value of an option as the schema holds it: Int options as int64, enums as their names.
+using OptionValue = std::variant<bool, std::int64_t, double, std::string, std::vector<std::string>>;
+
+// Numeric bounds of an Int or Float option (unbounded: +-1e308).
+struct OptionBounds {
+  double min = -1e308;
+  double max = 1e308;
+  bool min_exclusive = false;
+  bool max_exclusive = false;
+};
+
+struct OptionRow {
+  std::string key;    // "solver.iterations", "solver.pbd.velocity_damping"
+  OptionType type = OptionType::Float;
+  std::string units;  // "m", "N/m", "1", "" for none (Int, Bool, String)
+  OptionBounds bounds;
+  std::vector<std::string> choices;  // allowed values of a String / StringList; empty: any
+  std::string doc;                   // one line
+  std::function<OptionValue(const SolverOptions&)> get;          // the field's value
+  std::function<void(SolverOptions&, const OptionValue&)> set;   // throws std::invalid_argument
+                                                                  // for a name no enum has
+};
+
+// Every solver option, in the schema's order (the keys every solver reads, then [solver.pbd],
+// [solver.xpbd], [solver.force], [solver.seed], [solver.ref], [solver.global]). The default of a
+// row is its get() of SolverOptions{}.
+const std::vector<OptionRow>& solver_option_rows();
+
+// The row of `key`, or nullptr.
+const OptionRow* find_solver_option(const std::string& key);
 
 }  // namespace pbdbench

@@ -153,7 +153,8 @@ TEST(Schema, ClothDefaultsMakeTheStandardCloth) {
 
 // Every solver key of the schema maps onto a SolverOptions field, and where the schema has a
 // finite bound, SolverOptions::validate() draws the same line: a value just outside fails it, one
-// just inside passes. The schema's own validation is checked on the same values.
+// just inside passes (both come from the option's row, solver_api/options.cpp). The schema's own
+// validation is checked on the same values.
 TEST(Schema, SolverBoundsAgreeWithValidate) {
   int bounds_checked = 0;
   for (const KeySpec& k : common_keys()) {

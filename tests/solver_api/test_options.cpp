@@ -1,7 +1,10 @@
-// Tests of solver_api/options.cpp: what solver.threads = 0 resolves to.
+// Tests of solver_api/options.cpp: what solver.threads = 0 resolves to; the option rows (each
+// option declared once: its setter, its value and its check).
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "solver_api/options.hpp"
@@ -60,6 +63,70 @@ TEST(Options, ThreadsAreValidated) {
   EXPECT_NE(o.validate().find("solver.threads"), std::string::npos);
   o.threads = 0;
   EXPECT_EQ(o.validate(), "");
+}
+
+// Every row: a unique solver.* key, a getter and a setter that write the field the getter reads,
+// a default (SolverOptions{}) that passes validate().
+TEST(OptionRows, EachRowReadsAndWritesItsField) {
+  const SolverOptions defaults;
+  EXPECT_EQ(defaults.validate(), "");
+  const auto& rows = solver_option_rows();
+  ASSERT_GE(rows.size(), 40u);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const OptionRow& r = rows[i];
+    SCOPED_TRACE(r.key);
+    EXPECT_EQ(r.key.rfind("solver.", 0), 0u);
+    EXPECT_FALSE(r.doc.empty());
+    EXPECT_EQ(find_solver_option(r.key), &r);
+    for (size_t j = 0; j < i; ++j) EXPECT_NE(r.key, rows[j].key);
+    // Write the default back: nothing changes; then a changed value is read back.
+    SolverOptions o;
+    r.set(o, r.get(defaults));
+    EXPECT_EQ(r.get(o), r.get(defaults));
+    OptionValue other = r.get(defaults);
+    if (auto* b = std::get_if<bool>(&other)) *b = !*b;
+    else if (auto* n = std::get_if<std::int64_t>(&other)) *n += 1;
+    else if (auto* d = std::get_if<double>(&other)) *d = *d == 0.0 ? 0.5 : *d * 0.5;
+    else if (auto* t = std::get_if<std::string>(&other)) {
+      if (r.choices.size() < 2) continue;
+      *t = r.choices[r.choices[0] == *t ? 1 : 0];
+    } else if (auto* l = std::get_if<std::vector<std::string>>(&other)) {
+      ASSERT_FALSE(r.choices.empty());
+      l->push_back(r.choices.back());
+    }
+    r.set(o, other);
+    EXPECT_EQ(r.get(o), other);
+    EXPECT_NE(r.get(o), r.get(defaults));
+  }
+  EXPECT_EQ(find_solver_option("solver.unknown"), nullptr);
+}
+
+// validate() checks each row's bounds and choices, naming the key and the bound.
+TEST(OptionRows, ValidateUsesTheRowsBounds) {
+  SolverOptions o;
+  o.iterations = 0;
+  EXPECT_EQ(o.validate(), "solver.iterations = 0 is below the minimum 1");
+  o = {};
+  o.jacobi_relaxation = 0.0;
+  EXPECT_EQ(o.validate(), "solver.jacobi_relaxation = 0 must be greater than 0");
+  o = {};
+  o.ref_rtol = 1.0;
+  EXPECT_EQ(o.validate(), "solver.ref.rtol = 1 must be less than 1");
+  o = {};
+  o.contact_margin = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(o.validate(), "solver.contact_margin = inf is not a finite number");
+  o = {};
+  o.seed_backup = "later";
+  EXPECT_EQ(o.validate(), "solver.seed.backup = 'later' is not one of before_forces, after_damping");
+  o = {};
+  o.seed_fixes = {"D1", "D12"};
+  EXPECT_NE(o.validate().find("solver.seed.fixes: 'D12'"), std::string::npos);
+  o = {};
+  o.seed_dynamic_inverse_mass = o.seed_graded_inverse_mass = true;
+  EXPECT_NE(o.validate().find("choose one"), std::string::npos);
+  // An enum's row refuses a name it does not know.
+  SolverOptions e;
+  EXPECT_THROW(find_solver_option("solver.order")->set(e, std::string("sideways")), std::invalid_argument);
 }
 
 }  // namespace
