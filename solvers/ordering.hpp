@@ -1,5 +1,5 @@
 // The order in which a projection sweep visits the constraint list: the model's constraints
-// 0..m-1 followed by the substep's contacts m..m+c-1 (solvers/options.hpp, ProjectionOrder).
+// 0..m-1 followed by the substep's contacts m..m+c-1 (solver_api/options.hpp, ProjectionOrder).
 //
 //   Ordering ordering(model, options);           // once per model: the colouring of the model
 //   ordering.set_contacts(model, contacts, x);   // each substep: recolours / regroups with the

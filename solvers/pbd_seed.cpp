@@ -622,7 +622,7 @@ class PbdSeedSolver final : public Solver {
   }
 
   // Bookkeeping for the velocity pass (used only with D8 fixed): the contact's multiplier is the
-  // relative normal displacement it applied, divided by w_a + w_b (solvers/velocity_pass.hpp).
+  // relative normal displacement it applied, divided by w_a + w_b (solver_api/velocity_pass.hpp).
   void record_normal_push(const Model& model, size_t k, const SeedCorrection<Real>& c,
                           const Vec3& unit_normal) {
     const Contact& con = candidates_[k];

@@ -1,4 +1,4 @@
-// Tests of solvers/velocity_pass.hpp: friction, restitution and velocity damping, alone and
+// Tests of solver_api/velocity_pass.hpp: friction, restitution and velocity damping, alone and
 // through the pbd and xpbd solvers.
 #include <gtest/gtest.h>
 
