@@ -304,6 +304,7 @@ PartResult decide_part(const Experiment& ex, const PartSpec& p, const ClaimResul
   pr.quote = p.quote;
   pr.translation = p.translation;
   pr.reading = p.reading;
+  pr.truth = p.truth;
   pr.judges = p.judges;
   pr.beyond = p.beyond;
   pr.published = p.published;

@@ -77,6 +77,7 @@ struct MeasureResult {
 struct PartResult {
   std::string says;
   std::string quote, translation, reading;  // claims
+  std::string truth;                        // claims: what the part is judged against
   Judges judges = Judges::Method;
   bool beyond = false;
   std::string published, source, identity, setup_unknown;  // reproductions

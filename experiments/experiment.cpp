@@ -465,7 +465,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   };
   for (const toml::table* t : array_of_tables(root, "part", file)) {
     std::vector<std::string> known = {"says", "rule", "untestable", "requires", "requires_why"};
-    const std::vector<std::string> only = claim ? std::vector<std::string>{"quote", "translation", "judges", "regime", "reading"}
+    const std::vector<std::string> only = claim ? std::vector<std::string>{"quote", "translation", "judges", "regime", "reading", "truth"}
                                                 : std::vector<std::string>{"published", "source", "ours", "identity",
                                                                            "setup_unknown"};
     known.insert(known.end(), only.begin(), only.end());
@@ -492,6 +492,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
       p.quote = r.string("quote", true);
       p.translation = r.string("translation", true);
       p.reading = r.string("reading", false);
+      p.truth = r.string("truth", false);
       const std::string judges = r.string("judges", true);
       if (judges == "listing") p.judges = Judges::Listing;
       else if (judges == "method") p.judges = Judges::Method;

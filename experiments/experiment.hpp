@@ -57,6 +57,8 @@
 //                                      #   listing or pbd: the loader checks the fixes)
 //   regime = "article"                 # claims: article (default) | beyond (beyond its regime)
 //   reading = "..."                    # claims, optional: which reading is tested, and why
+//   truth = "..."                      # claims, optional: what the part is judged against (a
+//                                      #   closed form, the contact reference, a converged run)
 //   rule = "rate_sequential >= 0.9 and rate_grouped <= 0.1"
 //   requires = "exploded_baseline == 0"   # optional: else the part is inconclusive
 //   requires_why = "the baseline must not explode"
@@ -162,6 +164,7 @@ struct PartSpec {
   Judges judges = Judges::Method;
   bool beyond = false;      // regime = "beyond": goes beyond the regime the article means
   std::string reading;      // which reading of the sentence is tested, and why
+  std::string truth;        // what the part is judged against, and why that ("" not stated)
   // Reproductions.
   std::string published;  // the published number or relation, as printed
   std::string source;     // where it is printed (paper, section, figure or table)

@@ -429,6 +429,7 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
       md << block_quote(p.quote) << ">\n" << block_quote(p.translation) << "\n";
       md << "- Tested: " << p.says << "\n";
       if (!p.reading.empty()) md << "- Reading: " << p.reading << "\n";
+      if (!p.truth.empty()) md << "- Judged against: " << p.truth << "\n";
       if (!p.rule.empty()) {
         md << "- Rule: `" << p.rule << "`";
         if (!p.requires_.empty()) md << ", decided only when `" << p.requires_ << "`";
@@ -510,6 +511,7 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
          << json_string(p.requires_) << ", \"verdict\": " << json_string(verdict_word(p.verdict, c.kind))
          << ", \"reason\": " << json_string(p.reason) << ", \"judges\": " << json_string(to_string(p.judges))
          << ", \"regime\": " << json_string(p.beyond ? "beyond" : "article")
+         << ", \"truth\": " << json_string(p.truth)
          << ", \"published\": " << json_string(p.published) << ", \"source\": " << json_string(p.source)
          << ", \"ours\": " << json_string(p.ours) << ", \"ours_value\": "
          << (p.ours.empty() ? std::string("null") : json_number(p.ours_value))

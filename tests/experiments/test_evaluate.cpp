@@ -55,6 +55,7 @@ says = "it falls g t^2/2"
 quote = "落下"
 translation = "falls"
 judges = "method"
+truth = "the closed form g t^2 / 2"
 rule = "abs(fall - 9.81 * 0.25 / 2) < 0.05"
 [[part]]
 says = "it falls 10 m"
@@ -161,7 +162,12 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
   EXPECT_NE(md.find("`abs(fall - 9.81 * 0.25 / 2) < 0.05`"), std::string::npos);
   EXPECT_NE(md.find("**not testable**: no reason to"), std::string::npos);
   EXPECT_NE(md.find("beyond the article's regime"), std::string::npos);
+  // What a part is judged against is said beside its rule, and only where the file states it.
+  EXPECT_EQ(r.parts[0].truth, "the closed form g t^2 / 2");
+  EXPECT_NE(md.find("- Judged against: the closed form g t^2 / 2\n"), std::string::npos) << md;
+  EXPECT_EQ(md.find("- Judged against: \n"), std::string::npos) << md;
   const std::string js = results_json({r}, ctx, dir);
+  EXPECT_NE(js.find("\"truth\": \"the closed form g t^2 / 2\""), std::string::npos) << js;
   EXPECT_NE(js.find("\"runs/S9.1/xpbd-000.h5\""), std::string::npos) << js;
 }
 
