@@ -118,7 +118,8 @@ std::vector<KeySpec> group_keys(const std::string& prefix, const std::string& wh
       real(join(prefix, "compliance"), def.compliance, compliance_units, at_least(0),
            "XPBD compliance alpha of the " + what + " (inverse stiffness; 0 = rigid)"),
       real(join(prefix, "stiffness"), def.stiffness, "1", within(0, 1),
-           "PBD stiffness k of the " + what + " (Mueller et al. 2007, sec. 3.3)"),
+           "PBD's per-iteration stiffness k of the " + what + " (Mueller et al. 2007, sec. 3.3): "
+           "read by pbd-seed, and by pbd only with solver.pbd.material = stiffness"),
       real(join(prefix, "damping"), def.damping, "s/(" + compliance_units + ")", at_least(0),
            "XPBD damping coefficient beta of the " + what +
                " (Macklin et al. 2016, eq. 26: gamma = alpha beta / h is dimensionless)"),
@@ -501,8 +502,14 @@ const std::vector<KeySpec>& common_keys() {
                 "pbd, xpbd: threads of the colored and Jacobi sweeps (the results are the same "
                 "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
                 "1 by default (docs/performance.md)"),
+        text("solver.pbd.material", to_string(so.pbd_material), {"compliance", "stiffness"},
+             "pbd: where each constraint's per-iteration stiffness k comes from: compliance (the "
+             "scene's one physical material, the *_compliance keys; k derived per substep by the "
+             "effective-stiffness law of Mueller et al. 2007, docs/solvers.md) or stiffness (an "
+             "explicit override: the *_stiffness keys are k itself)"),
         boolean("solver.pbd.stiffness_correction", so.pbd_stiffness_correction,
-                "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"),
+                "pbd with material = stiffness: use k' = 1 - (1 - k)^(1/iterations) (Mueller et "
+                "al. 2007, sec. 3.3)"),
         real("solver.pbd.velocity_damping", so.pbd_velocity_damping, "1", within(0, 1),
              "pbd: damping of the motion relative to the rigid modes (Mueller et al. 2007, sec. 3.5)"),
         boolean("solver.xpbd.residuals", so.xpbd_residuals,

@@ -52,6 +52,17 @@ bool parse_precision(const std::string& name, Precision& out) {
   return true;
 }
 
+const char* to_string(PbdMaterial material) {
+  return material == PbdMaterial::Stiffness ? "stiffness" : "compliance";
+}
+
+bool parse_pbd_material(const std::string& name, PbdMaterial& out) {
+  if (name == "compliance") out = PbdMaterial::Compliance;
+  else if (name == "stiffness") out = PbdMaterial::Stiffness;
+  else return false;
+  return true;
+}
+
 int available_cores() {
   int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   cpu_set_t set;
