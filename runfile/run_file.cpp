@@ -20,6 +20,8 @@
 // lock on <path>, so readers may open it while the run is still going.
 #include "runfile/run_file.hpp"
 
+#include "runfile/frame_compressor.hpp"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -27,6 +29,9 @@
 #include <H5Cpp.h>
 
 #include <algorithm>
+#include <bit>
+#include <deque>
+#include <memory>
 #include <array>
 #include <cerrno>
 #include <chrono>
@@ -75,7 +80,11 @@ using Clock = std::chrono::steady_clock;
 
 constexpr long long kFormatVersion = 1;
 constexpr hsize_t kChunkRows = 256;  // rows per chunk of a series dataset
-constexpr int kGzipLevel = 4;        // frames/positions
+// Frames are deflated at level 1 without the shuffle filter, off the stepping thread
+// (runfile/frame_compressor.hpp). On a 256 x 256 cloth's frames, level 1 without shuffle gave
+// smaller files than level 4 with shuffle (24.4 against 26.2 MB) in half the time (1.37 against
+// 2.63 s); docs/performance.md has the measurement and its command.
+constexpr int kGzipLevel = 1;
 // Publishing copies what changed since the last publish; it is spaced so that it takes at most
 // about 1/kPublishShare of the wall time.
 constexpr double kPublishShare = 20.0;
@@ -394,6 +403,15 @@ struct RunFileWriter::Impl {
   std::vector<std::string> series_names;
   std::optional<H5::DataSet> frame_time, frame_positions, frame_velocities;
   hsize_t frames = 0;
+  // Frames' positions and velocities are deflated by a worker (chunk 2k: positions of frame k,
+  // 2k + 1: its velocities) and stored here in order; a frame's time is stored with its
+  // velocities, so every image has as many frame times as positions and velocities. A publish
+  // stores the frames finished by then (the series may be a few frames ahead); finish() stores
+  // them all. At most kMaxFramesQueued frames wait for the worker.
+  static constexpr long long kMaxFramesQueued = 4;
+  std::unique_ptr<FrameCompressor> compressor;
+  std::deque<double> frame_times_queued;
+  std::optional<CompressedChunk> held_positions;  // a frame's positions, its velocities not done
 
   size_t pending_rows = 0;
   long last_step = 0;
@@ -418,6 +436,34 @@ struct RunFileWriter::Impl {
     dirty = true;
   }
 
+  // Stores the chunks the compressor has finished (with `wait`, every one submitted).
+  void store_frames(bool wait) {
+    if (!compressor) return;
+    const hsize_t n = static_cast<hsize_t>(particles);
+    auto store = [&](H5::DataSet& ds, const CompressedChunk& c) {
+      const hsize_t row = static_cast<hsize_t>(c.index / 2);
+      const hsize_t size[3] = {row + 1, n, 3};
+      ds.extend(size);
+      const hsize_t offset[3] = {row, 0, 0};
+      // Filter mask: 0 = the dataset's deflate filter was applied; bit 0 set = it was skipped.
+      if (H5Dwrite_chunk(ds.getId(), H5P_DEFAULT, c.deflated ? 0u : 1u, offset, c.bytes.size(), c.bytes.data()) < 0)
+        fail(path, "cannot write a frame's chunk");
+    };
+    for (CompressedChunk& c : compressor->take(wait)) {
+      if (c.index % 2 == 0) {  // positions: held until the frame's velocities are done too
+        held_positions = std::move(c);
+        continue;
+      }
+      // A whole frame: positions, velocities and time reach the image together.
+      store(*frame_positions, *held_positions);
+      store(*frame_velocities, c);
+      held_positions.reset();
+      append_rows(*frame_time, frames, 1, {}, &frame_times_queued.front(), H5::PredType::NATIVE_DOUBLE);
+      frame_times_queued.pop_front();
+      dirty = true;
+    }
+  }
+
   double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
 
   // Writes the buffered rows, flushes the library and publishes the working copy at `path`.
@@ -425,6 +471,7 @@ struct RunFileWriter::Impl {
     if (broken) fail(path, "an earlier publish failed: the file stays as it was then");
     const Clock::time_point t0 = Clock::now();
     write_pending();
+    store_frames(durable);
     set_attr(*file, "steps_completed", static_cast<long long>(last_step));
     if (!durable) set_attr(*file, "wall_time", elapsed());
     file->flush(H5F_SCOPE_GLOBAL);
@@ -447,6 +494,7 @@ struct RunFileWriter::Impl {
   // Closes the library's file and removes the working copy; the lock goes last.
   void close() {
     closed = true;
+    compressor.reset();  // joins the worker
     series.clear();
     frame_time.reset();
     frame_positions.reset();
@@ -576,7 +624,6 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
       const hsize_t chunk[3] = {1, std::max<hsize_t>(n, 1), 3};
       H5::DSetCreatPropList props;
       props.setChunk(3, chunk);
-      props.setShuffle();
       props.setDeflate(kGzipLevel);
       w.frame_positions.emplace(frames.createDataSet("positions", H5::PredType::IEEE_F64LE,
                                                      H5::DataSpace(3, dims, maxdims), props,
@@ -588,6 +635,7 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
                                                       small_chunk_cache(static_cast<size_t>(chunk[1]) * 3 * sizeof(double))));
       set_attr(*w.frame_velocities, "units", "m/s");
       set_attr(*w.frame_velocities, "doc", "particle velocities of each frame, (frames, n, 3) (NaN where not given)");
+      if (n > 0) w.compressor = std::make_unique<FrameCompressor>(kGzipLevel);
     }
   } catch (const H5::Exception& e) {
     fail(path, "cannot create the HDF5 file: " + h5_message(e));
@@ -656,22 +704,24 @@ void RunFileWriter::append_frame(double time, const Points& x, const Points* v) 
                                 std::to_string(x.rows()) + " particles, the model has " +
                                 std::to_string(w.particles));
   try {
-    w.write_pending();  // rows and frames reach the image together
-    hsize_t rows = w.frames;
-    append_rows(*w.frame_time, rows, 1, {}, &time, H5::PredType::NATIVE_DOUBLE);
-    rows = w.frames;
-    if (w.particles > 0) {
-      append_rows(*w.frame_positions, rows, 1, {static_cast<hsize_t>(w.particles), 3}, x.data(),
-                  H5::PredType::NATIVE_DOUBLE);
-      rows = w.frames;
-      const Points nan = v != nullptr && v->rows() == x.rows()
-                             ? Points()
-                             : Points::Constant(x.rows(), 3, std::numeric_limits<double>::quiet_NaN());
-      const Points& vel = nan.rows() > 0 ? nan : *v;
-      append_rows(*w.frame_velocities, rows, 1, {static_cast<hsize_t>(w.particles), 3}, vel.data(),
-                  H5::PredType::NATIVE_DOUBLE);
+    w.write_pending();  // rows up to the frame reach the image no later than the frame
+    if (w.particles == 0) {
+      append_rows(*w.frame_time, w.frames, 1, {}, &time, H5::PredType::NATIVE_DOUBLE);
+    } else {
+      // Points are row-major (n x 3), the chunk's layout; stored little-endian as on this machine.
+      static_assert(Points::IsRowMajor, "a frame chunk is the points' memory as it is");
+      static_assert(std::endian::native == std::endian::little, "the frames' file type is IEEE_F64LE");
+      const size_t bytes = static_cast<size_t>(w.particles) * 3 * sizeof(double);
+      w.compressor->submit(x.data(), bytes);
+      if (v != nullptr && v->rows() == x.rows()) {
+        w.compressor->submit(v->data(), bytes);
+      } else {
+        const Points nan = Points::Constant(x.rows(), 3, std::numeric_limits<double>::quiet_NaN());
+        w.compressor->submit(nan.data(), bytes);
+      }
+      w.frame_times_queued.push_back(time);
+      w.store_frames(w.compressor->outstanding() > 2 * Impl::kMaxFramesQueued);
     }
-    w.frames += 1;
     w.dirty = true;
     w.maybe_publish();
   } catch (const H5::Exception& e) {

@@ -8,7 +8,7 @@
 //   /series/<name>     one dataset per series_table() entry (+ per-group series), extendible,
 //                      chunked; attributes units, doc, deterministic
 //   /frames/time       (F,) s
-//   /frames/positions  (F, n, 3) m, chunked (1, n, 3), shuffle + gzip
+//   /frames/positions  (F, n, 3) m, chunked (1, n, 3), gzip (level 1, deflated off the stepping thread)
 //   /frames/velocities (F, n, 3) m/s, the same (NaN rows where a frame came without them)
 //   /model/...         (declared once in run_file.cpp, kModelArrays, for the writer and the reader)
 //                      rest_positions (n,3), inv_mass (n), radius (n), gravity (3), edges (E,2),

@@ -1,0 +1,104 @@
+#include "runfile/frame_compressor.hpp"
+
+#include <pthread.h>
+#include <zlib.h>
+
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace pbdbench {
+
+CompressedChunk deflate_chunk(const void* data, size_t size, int level) {
+  CompressedChunk c;
+  uLongf capacity = compressBound(static_cast<uLong>(size));
+  c.bytes.resize(capacity);
+  const int rc = compress2(c.bytes.data(), &capacity, static_cast<const Bytef*>(data), static_cast<uLong>(size), level);
+  if (rc != Z_OK) throw std::runtime_error("zlib compress2 failed with code " + std::to_string(rc));
+  if (capacity < size) {
+    c.bytes.resize(capacity);
+    c.deflated = true;
+  } else {  // incompressible: stored as it is
+    c.bytes.assign(static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
+    c.deflated = false;
+  }
+  return c;
+}
+
+std::vector<unsigned char> inflate_chunk(const CompressedChunk& c, size_t size) {
+  if (!c.deflated) return c.bytes;
+  std::vector<unsigned char> out(size);
+  uLongf n = static_cast<uLongf>(size);
+  const int rc = uncompress(out.data(), &n, c.bytes.data(), static_cast<uLong>(c.bytes.size()));
+  if (rc != Z_OK || n != size) throw std::runtime_error("zlib uncompress failed with code " + std::to_string(rc));
+  return out;
+}
+
+FrameCompressor::FrameCompressor(int level) : level_(level), worker_([this] { work(); }) {}
+
+FrameCompressor::~FrameCompressor() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  wake_worker_.notify_all();
+  worker_.join();
+}
+
+long long FrameCompressor::submit(const void* data, size_t size) {
+  std::vector<unsigned char> copy(static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
+  long long index;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    index = submitted_++;
+    todo_.emplace_back(index, std::move(copy));
+  }
+  wake_worker_.notify_one();
+  return index;
+}
+
+std::vector<CompressedChunk> FrameCompressor::take(bool wait) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (wait) done_.wait(lock, [this] { return taken_ + static_cast<long long>(finished_.size()) == submitted_; });
+  std::vector<CompressedChunk> out;
+  while (!finished_.empty()) {
+    out.push_back(std::move(finished_.front()));
+    finished_.pop_front();
+  }
+  taken_ += static_cast<long long>(out.size());
+  return out;
+}
+
+long long FrameCompressor::outstanding() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return submitted_ - taken_;
+}
+
+void FrameCompressor::work() {
+  pthread_setname_np(pthread_self(), "pbdbench-frames");  // how profilers and top show it
+  for (;;) {
+    std::pair<long long, std::vector<unsigned char>> job;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_worker_.wait(lock, [this] { return stop_ || !todo_.empty(); });
+      if (todo_.empty()) return;  // stop_ and nothing left
+      job = std::move(todo_.front());
+      todo_.pop_front();
+    }
+    CompressedChunk c;
+    try {
+      c = deflate_chunk(job.second.data(), job.second.size(), level_);
+    } catch (...) {
+      c.bytes = std::move(job.second);  // stored as it is: never lose a frame
+      c.deflated = false;
+    }
+    c.index = job.first;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      finished_.push_back(std::move(c));  // one worker: finished in submission order
+    }
+    done_.notify_all();
+  }
+}
+
+}  // namespace pbdbench

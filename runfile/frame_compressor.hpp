@@ -1,0 +1,63 @@
+// Compresses the run file's frames off the stepping thread.
+//
+// A frame of positions and velocities is what a run writes in bulk (2 x n x 3 doubles each
+// 1/60 s), and deflating it in the stepping thread was most of the harness's cost on large cloths
+// (docs/performance.md, "The harness out of the way"). The writer hands each frame's bytes to a
+// FrameCompressor, whose one worker thread deflates them (zlib, the format of HDF5's deflate
+// filter) while the run steps on; the writer takes the finished chunks back in order and stores
+// them as they are (H5Dwrite_chunk), so every HDF5 call stays on the writer's thread.
+//
+// Pure byte work: no HDF5 here. The output is a deterministic function of the input bytes.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace pbdbench {
+
+// One chunk, deflated when that made it smaller (else `deflated` is false and `bytes` is the
+// input as given: HDF5 is then told that the filter was skipped for this chunk).
+struct CompressedChunk {
+  long long index = 0;  // the order it was submitted in (0, 1, 2, ...)
+  std::vector<unsigned char> bytes;
+  bool deflated = false;
+};
+
+// zlib's compress2 at `level` (1 fastest .. 9 smallest) of `size` bytes. Throws on a zlib error.
+CompressedChunk deflate_chunk(const void* data, size_t size, int level);
+// The inverse, for tests: inflates `c` to `size` bytes (or copies it when it was not deflated).
+std::vector<unsigned char> inflate_chunk(const CompressedChunk& c, size_t size);
+
+class FrameCompressor {
+ public:
+  explicit FrameCompressor(int level);
+  ~FrameCompressor();  // waits for the worker (finished chunks not taken are dropped)
+  FrameCompressor(const FrameCompressor&) = delete;
+  FrameCompressor& operator=(const FrameCompressor&) = delete;
+
+  // Queues a copy of `size` bytes; returns its index (0, 1, 2, ... in call order).
+  long long submit(const void* data, size_t size);
+  // The finished chunks, in submission order, up to the first one not finished yet; with
+  // `wait`, every submitted chunk (blocks until the worker is done with all of them).
+  std::vector<CompressedChunk> take(bool wait);
+  // Chunks submitted and not yet taken.
+  long long outstanding() const;
+
+ private:
+  void work();
+
+  const int level_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_worker_, done_;
+  std::deque<std::pair<long long, std::vector<unsigned char>>> todo_;
+  std::deque<CompressedChunk> finished_;  // in index order
+  long long submitted_ = 0, taken_ = 0;
+  bool stop_ = false;
+  std::thread worker_;
+};
+
+}  // namespace pbdbench
