@@ -10,6 +10,7 @@
 
 #include "config/config.hpp"
 #include "config/internal.hpp"
+#include "solvers/pbd_material.hpp"
 
 namespace pbdbench::config {
 
@@ -149,16 +150,19 @@ std::string describe_config(const Config& config) {
 namespace {
 
 // Which solver reads a key: "" for every solver, else the family the key belongs to.
-bool solver_reads(const std::string& solver, const std::string& path) {
-  const bool stiffness_reader = solver == "pbd" || solver == "pbd-seed";
+// pbd reads the *_stiffness keys only with solver.pbd.material = "stiffness"; pbd-seed (the seed
+// article's listing) always, and no other solver.
+bool solver_reads(const std::string& solver, const std::string& pbd_material, const std::string& path) {
+  const bool stiffness_reader = solver == "pbd-seed" || (solver == "pbd" && pbd_material == "stiffness");
+  const bool pbd_family = solver == "pbd" || solver == "pbd-seed";
   auto ends_with = [&](const char* tail) {
     const std::string t(tail);
     return path.size() >= t.size() && path.compare(path.size() - t.size(), t.size(), t) == 0;
   };
   if (path.rfind("scene.", 0) == 0) {
     if (ends_with("_stiffness") || path == "scene.stiffness") return stiffness_reader;
-    if (ends_with("_compliance") || path == "scene.compliance" || ends_with("_damping"))
-      return !stiffness_reader;
+    if (ends_with("_compliance") || path == "scene.compliance") return !stiffness_reader;
+    if (ends_with("_damping") || path == "scene.damping") return !pbd_family;
     return true;
   }
   const std::pair<const char*, const char*> families[] = {
@@ -199,13 +203,15 @@ std::string short_source(const Source& s) {
 
 std::string describe_config(const Config& config, bool all, std::size_t width) {
   const std::string solver = config.has("solver.name") ? config.get_string("solver.name") : "";
+  const std::string pbd_material =
+      config.has("solver.pbd.material") ? config.get_string("solver.pbd.material") : "compliance";
   std::string out = wrap(fmt::format("Scenario '{}' ({}), solver {}{}", config.scenario_name,
                                      config.file.string(), solver,
                                      all ? "" : "; keys that this solver does not read are hidden (--all shows them)"),
                          0, width);
   std::size_t hidden = 0;
   auto add = [&](const KeySpec& k, const std::string& shown, const Entry& e) {
-    if (!all && !solver_reads(solver, k.path)) {
+    if (!all && !solver_reads(solver, pbd_material, k.path)) {
       ++hidden;
       return;
     }
@@ -234,35 +240,24 @@ std::string describe_config(const Config& config, bool all, std::size_t width) {
   try {
     const Scene scene = build_scene(config);
     const Model& m = scene.model;
-    const bool stiffness = solver == "pbd" || solver == "pbd-seed";
-    out += "\n" + wrap(fmt::format("Material as {} reads it, per constraint group ({}):", solver,
-                                    stiffness ? "PBD's stiffness k per projection, Mueller et al. 2007 sec. 3.3; "
-                                                "the *_compliance keys are not read"
-                                              : "compliance alpha (inverse stiffness, 0 = rigid); the *_stiffness "
-                                                "keys are not read"),
-                        0, width);
-    for (std::size_t g = 0; g < m.group_names.size(); ++g) {
-      double lo = 0.0, hi = 0.0;
-      int count = 0;
-      ConstraintKind kind = ConstraintKind::Distance;
-      for (const Constraint& c : m.constraints) {
-        if (c.group != g) continue;
-        const double v = stiffness ? c.stiffness : c.compliance;
-        lo = count == 0 ? v : std::min(lo, v);
-        hi = count == 0 ? v : std::max(hi, v);
-        kind = c.kind;
-        ++count;
-      }
-      if (count == 0) continue;
-      std::string value;
-      if (is_fem_kind(kind))
-        value = stiffness ? "none: pbd has no FEM material (it refuses the scene)"
-                          : fmt::format("alpha from the element's Young's modulus and Poisson ratio ({:.4g}..{:.4g})", lo, hi);
-      else
-        value = fmt::format("{} = {}", stiffness ? "k" : "alpha",
-                            lo == hi ? fmt::format("{:.6g}", lo) : fmt::format("{:.6g}..{:.6g}", lo, hi));
-      out += wrap(fmt::format("{} ({} x {}): {}", m.group_names[g], count, to_string(kind), value), 2, width);
-    }
+    const SolverOptions o = solver_options(config);
+    std::string what;
+    if (solver == "pbd")
+      what = fmt::format("k, PBD's stiffness per projection, Mueller et al. 2007 sec. 3.3; "
+                         "solver.pbd.material = {}", pbd_material);
+    else if (solver == "pbd-seed")
+      what = "k, the seed listing's stiffness per projection; the *_compliance keys are not read";
+    else
+      what = "compliance alpha (inverse stiffness, 0 = rigid); the *_stiffness keys are not read";
+    out += "\n" + wrap(fmt::format("Material as {} uses it, per constraint group ({}):", solver, what),
+                       0, width);
+    // What the solver uses for each group (solvers/pbd_material.hpp): pbd's k derived by the
+    // rule or the explicit override, for this run's substep and iteration count.
+    std::istringstream lines(material_text(m, o, run_options(config).dt));
+    for (std::string line; std::getline(lines, line);) out += wrap(line, 2, width);
+    if (solver == "pbd")
+      if (const std::string problem = pbd_material_problem(m); !problem.empty())
+        out += wrap("pbd refuses this scene: " + problem, 2, width);
   } catch (const std::exception& e) {
     out += wrap(std::string("(the scene cannot be built: ") + e.what() + ")", 2, width);
   }

@@ -676,8 +676,49 @@ class Loader {
            fmt::format("{}: {:.3g} steps, more than the {:g} a run may plan", values, ratio, kMaxSteps));
   }
 
+  // One material, whatever the solver (solvers/pbd_material.hpp): pbd derives each k from the
+  // compliances (solver.pbd.material = "compliance", the default) or takes the *_stiffness keys
+  // as an explicit override ("stiffness"). What it cannot honour is refused rather than left
+  // unread: a constraint's damping beta (no pbd meaning in either mode), and the correction of
+  // an explicit k when k is derived. (The *_stiffness keys are pbd-seed's k too, the seed
+  // listing's only material, so scenes keep them; describe and the run file's "material" say
+  // which value pbd used.)
+  void check_pbd_material(const Config& config) const {
+    if (config.get_string("solver.name") != "pbd") return;
+    const bool derived = config.get_string("solver.pbd.material") == "compliance";
+    auto where = [&](const Entry& e) { return e.source.file.empty() ? Source{file_name_, 0} : e.source; };
+    auto number = [](const Value& v) {
+      if (const auto* i = std::get_if<std::int64_t>(&v)) return static_cast<double>(*i);
+      if (const auto* d = std::get_if<double>(&v)) return *d;
+      return 0.0;
+    };
+    auto scan = [&](const std::map<std::string, Entry>& m, const std::string& table,
+                    const std::string& name_prefix) {
+      for (const auto& [path, e] : m) {
+        if (path.rfind(table, 0) != 0) continue;
+        const bool damping = path.size() >= 7 && path.compare(path.size() - 7, 7, "damping") == 0;
+        if (!damping || number(e.value) == 0.0) continue;
+        const std::string name = name_prefix + path.substr(table.size());
+        fail(where(e), name,
+             fmt::format("{} = {} is XPBD's constraint damping beta, which has no pbd meaning: "
+                         "set it to 0 for pbd (solver.pbd.velocity_damping damps pbd's motion), "
+                         "or use solver.name = \"xpbd\"", name, format_value(e.value)));
+      }
+    };
+    scan(config.entries, "scene.", "scene.");
+    for (std::size_t i = 0; i < config.bodies.size(); ++i)
+      scan(config.bodies[i], "body.", "body." + std::to_string(i) + ".");
+    const Entry& correction = config.at("solver.pbd.stiffness_correction");
+    if (derived && std::get<bool>(correction.value))
+      fail(where(correction), "solver.pbd.stiffness_correction",
+           "solver.pbd.stiffness_correction = true corrects an explicit k, but solver.pbd.material "
+           "= \"compliance\" derives k from the compliance for the iteration count already: set "
+           "solver.pbd.material = \"stiffness\" to correct the *_stiffness keys");
+  }
+
   // Rules that involve a key's value beyond its own type and bounds.
   void check_cross_keys(const Config& config) const {
+    check_pbd_material(config);
     check_magnitudes(config.entries, common_keys(), detail::find_kind(config.get_string("scene.kind"))->keys, "");
     for (std::size_t i = 0; i < config.colliders.size(); ++i)
       check_magnitudes(config.colliders[i], collider_keys(), {}, "collider." + std::to_string(i) + ".");

@@ -110,7 +110,8 @@ std::vector<KeySpec> group_keys(const std::string& prefix, const std::string& wh
       real(join(prefix, "compliance"), def.compliance, compliance_units, at_least(0),
            "XPBD compliance alpha of the " + what + " (inverse stiffness; 0 = rigid)"),
       real(join(prefix, "stiffness"), def.stiffness, "1", within(0, 1),
-           "PBD stiffness k of the " + what + " (Mueller et al. 2007, sec. 3.3)"),
+           "PBD's per-iteration stiffness k of the " + what + " (Mueller et al. 2007, sec. 3.3): "
+           "read by pbd-seed, and by pbd only with solver.pbd.material = stiffness"),
       real(join(prefix, "damping"), def.damping, "s/(" + compliance_units + ")", at_least(0),
            "XPBD damping coefficient beta of the " + what +
                " (Macklin et al. 2016, eq. 26: gamma = alpha beta / h is dimensionless)"),

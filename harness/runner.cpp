@@ -8,12 +8,15 @@
 #include <stdexcept>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "core/cancel.hpp"
 #include "harness/plan.hpp"
 #include "harness/relax.hpp"
 #include "metrics/health.hpp"
 #include "metrics/shadow.hpp"
 #include "solver_api/solver.hpp"
+#include "solvers/pbd_material.hpp"
 
 namespace pbdbench {
 
@@ -27,12 +30,16 @@ double seconds_since(Clock::time_point t0) {
 
 // The first quantity of a sample that must be finite and is not ("total energy = inf J"), or "".
 // NaN-by-design series (observables a scene does not have) are not looked at.
-std::string non_finite(const Sample& s) {
+// elastic_defined: false where elastic_energy (and the total) is NaN by definition
+// (MetricsBaseline::elastic_defined).
+std::string non_finite(const Sample& s, bool elastic_defined) {
   const std::pair<const char*, double> scalars[] = {
       {"kinetic energy", s.kinetic_energy}, {"potential energy", s.potential_energy},
       {"elastic energy", s.elastic_energy}, {"total energy", s.total_energy}};
-  for (const auto& [name, v] : scalars)
-    if (!std::isfinite(v)) return std::string(name) + " = " + std::to_string(v) + " J";
+  const std::size_t checked = elastic_defined ? 4 : 2;  // the elastic and total energies last
+  for (std::size_t i = 0; i < checked; ++i)
+    if (!std::isfinite(scalars[i].second))
+      return std::string(scalars[i].first) + " = " + std::to_string(scalars[i].second) + " J";
   if (!s.linear_momentum.allFinite()) return "linear momentum not finite";
   if (!s.angular_momentum.allFinite()) return "angular momentum not finite";
   return "";
@@ -99,9 +106,10 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
 
   // The run as a whole, before anything is written: its initial state must be measurable, and
   // it must fit the machine.
-  const MetricsBaseline baseline = measure_baseline(model, state);
+  MetricsBaseline baseline = measure_baseline(model, state);
+  baseline.elastic_defined = elastic_energy_defined(model, solver_opts);
   Sample sample = measure(model, state, baseline);
-  if (const std::string bad = non_finite(sample); !bad.empty())
+  if (const std::string bad = non_finite(sample, baseline.elastic_defined); !bad.empty())
     throw config::ConfigError(config::Source{config.file.string(), 0}, "scene",
                               "the initial state cannot be measured: " + bad +
                                   " (masses, positions, velocities or gravity too large)");
@@ -127,6 +135,18 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   header.config = config.to_toml();
   header.dt = run.dt;
   header.steps_planned = outcome.steps_planned;
+  header.material = material_text(model, solver_opts, run.dt);
+  if (solver_opts.name == "pbd") {
+    const double h = run.dt / solver_opts.substeps;
+    header.pbd_stiffness = pbd_stiffness(model, solver_opts, pbd_inverse_mass_sums(model), h);
+    header.pbd_stiffness_rule =
+        solver_opts.pbd_material == PbdMaterial::Compliance
+            ? fmt::format("derived from the compliance alpha by k = 1 - (1 + h^2 S / alpha)^(-1/n), "
+                          "S = sum |w_i| |grad_i C|^2 at rest (Mueller et al. 2007's effective "
+                          "stiffness; h = {} s, n = {})", h, solver_opts.iterations)
+            : std::string("the explicit override, the *_stiffness keys (solver.pbd.material = "
+                          "stiffness") + (solver_opts.pbd_stiffness_correction ? ", k' = 1 - (1 - k)^(1/n))" : ")");
+  }
   RunFileWriter writer(out, header, model);
 
   // Warnings (metrics/health.hpp). Energy comes in through moving kinematic particles or
@@ -135,7 +155,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   for (const Attachment& a : model.attachments) energy_sources = energy_sources || a.motion >= 0;
   for (const SphereCollider& sp : model.spheres) energy_sources = energy_sources || sp.motion >= 0;
   for (const MeshCollider& mc : model.meshes) energy_sources = energy_sources || mc.motion >= 0;
-  HealthMonitor health(model, state, sample, outcome.steps_planned, energy_sources);
+  HealthMonitor health(model, state, sample, outcome.steps_planned, energy_sources, run.dt);
   // Every way out records the warnings seen so far.
   auto record_warnings = [&] {
     for (const RunWarning& w : health.warnings()) outcome.warnings.push_back(w.line());
@@ -182,7 +202,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       outcome.steps_completed = k;
       health.observe(k, state, sample);
       std::string why = explosion_reason(model, state, sample, run.limits, baseline);
-      if (why.empty()) why = non_finite(sample);
+      if (why.empty()) why = non_finite(sample, baseline.elastic_defined);
       if (!why.empty()) {
         writer.append_frame(state.time, state.x, &state.v);
         outcome.status = RunStatus::Exploded;

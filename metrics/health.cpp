@@ -4,10 +4,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pbdbench {
 
 namespace {
+
+// The largest normalised constraint error of a state taken as satisfied (rest positions give
+// round-off only).
+constexpr double kSatisfied = 1e-9;
 
 double dynamic_mass(const Model& model) {
   double m = 0.0;
@@ -90,16 +95,29 @@ Tunnelled tunnelled_particles(const Model& model, const Points& x_prev, const Po
 }
 
 HealthMonitor::HealthMonitor(const Model& model, const State& initial, const Sample& s0,
-                             long steps_planned, bool energy_sources, HealthThresholds thresholds)
+                             long steps_planned, bool energy_sources, double dt,
+                             HealthThresholds thresholds)
     : model_(&model),
       th_(thresholds),
       steps_planned_(steps_planned),
       energy_sources_(energy_sources),
       e0_(s0.total_energy),
       x_prev_(initial.x) {
+  // elastic_energy is NaN where the run does not simulate the scene's physical material (an
+  // explicit k): E_el(0) is then 0 only when every constraint starts satisfied, whatever the
+  // material; otherwise the bound E(0) is unknown and the energy check is off.
+  double e_el0 = s0.elastic_energy;
+  if (std::isnan(e_el0)) {
+    e_el0 = s0.constraint_error_max <= kSatisfied ? 0.0 : std::numeric_limits<double>::quiet_NaN();
+    e0_ = s0.kinetic_energy + s0.potential_energy + e_el0;
+  }
   const double height = std::max(2.0 * s0.extent, 1e-3);
+  // The push-out of an initial overlap: at most 1/2 m (d0 / dt)^2 of kinetic energy.
+  const double d0 = s0.penetration_max;
+  const double push = dt > 0.0 && d0 > 0.0 ? 0.5 * dynamic_mass(model) * (d0 / dt) * (d0 / dt) : 0.0;
+  if (std::isfinite(push)) e0_ += push;
   energy_scale_ = dynamic_mass(model) * model.gravity.norm() * height + std::abs(s0.kinetic_energy) +
-                  std::abs(s0.elastic_energy);
+                  (std::isfinite(e_el0) ? std::abs(e_el0) : 0.0) + (std::isfinite(push) ? push : 0.0);
   if (!(energy_scale_ > 0.0)) energy_scale_ = 1e-12;
 }
 
@@ -118,9 +136,9 @@ void HealthMonitor::observe(long step, const State& state, const Sample& s) {
   };
   // The motion energy (kinetic + gravitational) against the initial total energy: with no source,
   // K + U_g = E(0) - E_el <= E(0) since E_el >= 0, whatever the elastic energy's accounting
-  // (an unconverged stiff constraint's C^2 / 2 alpha, or compliances pbd never used).
+  // (an unconverged stiff constraint's C^2 / 2 alpha is large without any motion gained).
   const double motion = s.kinetic_energy + s.potential_energy;
-  if (!energy_sources_ && std::isfinite(motion)) {
+  if (!energy_sources_ && std::isfinite(motion) && std::isfinite(e0_)) {
     const double gain = motion - e0_;
     note(energy_, gain, gain > th_.energy_gain * energy_scale_);
   }

@@ -10,10 +10,19 @@
 //                 energy can reach the initial total only by emptying the elastic energy
 //                 (E_el >= 0), so crossing it is energy made by the solver, whatever the elastic
 //                 energy's own accounting: an unconverged stiff constraint's C^2 / 2 alpha is
-//                 large without any motion gained, and pbd's elastic energy uses compliances it
-//                 never simulates, so the total energy is not the quantity watched.
+//                 large without any motion gained, so the total energy is not the quantity
+//                 watched.
 //                 Energy scale: m g H + |E_kin(0)| + |E_el(0)| with m the dynamic mass, g the
-//                 gravity, H = max(2 x the initial extent, 1 mm).
+//                 gravity, H = max(2 x the initial extent, 1 mm), + E_push. E_push = 1/2 m
+//                 (d0 / dt)^2, d0 the initial deepest penetration (penetration_max at t = 0)
+//                 and dt the step, bounds the kinetic energy of pushing an initial overlap out
+//                 within one step (no particle moves faster than d0 / dt to do it): an energy
+//                 source the scene states, added to the initial total as well as to the scale,
+//                 so that overlapping bodies without gravity or motion (whose scale was a
+//                 degenerate 1e-12 J) are not warned for their push-out. Where elastic_energy is NaN
+//                 (a run that does not simulate the scene's physical material: pbd with an
+//                 explicit k, pbd-seed), E_el(0) = 0 when every constraint starts satisfied
+//                 (normalised error <= 1e-9), whatever the material; otherwise the check is off.
 //   volume        |tet volume drift| or |enclosed surface volume drift| beyond volume_change.
 //   error_growth  the mean RMS constraint error grew in each quarter of the run, and the last
 //                 quarter's is above error_growth_ratio x the first's and above error_floor
@@ -49,8 +58,11 @@ struct RunWarning {
 
 class HealthMonitor {
  public:
+  // dt: the run's step (s), for the push-out energy of an initial overlap (energy_gain above);
+  // 0 leaves it out.
   HealthMonitor(const Model& model, const State& initial, const Sample& initial_sample,
-                long steps_planned, bool energy_sources, HealthThresholds thresholds = {});
+                long steps_planned, bool energy_sources, double dt = 0.0,
+                HealthThresholds thresholds = {});
   // After each step k (1-based) with the state and its sample.
   void observe(long step, const State& state, const Sample& sample);
   // What was seen so far, in a fixed order (energy, volume, error growth, tunnelling).

@@ -142,6 +142,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     }
   }
   for (const FemElement& e : model.elements) s.elastic_energy += fem::element_energy(e, x);
+  if (!baseline.elastic_defined) s.elastic_energy = kNaN;
   s.total_energy = s.kinetic_energy + s.potential_energy + s.elastic_energy;
 
   // Explosion indicators.

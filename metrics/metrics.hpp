@@ -16,6 +16,11 @@ struct MetricsBaseline {
   double tet_volume = 0.0;      // m^3, sum of signed tet volumes at t = 0
   double surface_volume = 0.0;  // m^3, enclosed volume of the closed surface at t = 0
   double extent = 0.0;          // m, max distance of a particle from the centroid at t = 0
+  // Whether the scene's physical material (its compliances and FEM elements) is the material
+  // the run simulates, so that elastic_energy is defined (solvers/pbd_material.hpp,
+  // elastic_energy_defined: not for pbd with an explicit k, nor for pbd-seed's k). Set by the
+  // runner; measure_baseline leaves it true.
+  bool elastic_defined = true;
 };
 
 MetricsBaseline measure_baseline(const Model& model, const State& initial);
@@ -53,9 +58,12 @@ struct Sample {
   double surface_volume_drift = 0.0;  // 1
 
   // Energy of the dynamic particles (inv_mass > 0): kinetic 1/2 m v^2, gravitational -m g . x,
-  // elastic sum over compliant constraints (alpha > 0) of C^2 / (2 alpha), the FEM kinds left
-  // out, plus sum over FEM elements of V0 (Psi(F) - Psi(I)) (fem::element_energy, which stands
-  // for the FEM-kind constraints too); total = their sum.
+  // elastic: the energy of the scene's physical material, the same formula whatever the solver:
+  // sum over compliant constraints (alpha > 0) of C^2 / (2 alpha), the FEM kinds left out, plus
+  // sum over FEM elements of V0 (Psi(F) - Psi(I)) (fem::element_energy, which stands for the
+  // FEM-kind constraints too); rigid constraints (alpha = 0) store none. NaN (and total NaN)
+  // when the run does not simulate that material (MetricsBaseline::elastic_defined: pbd with an
+  // explicit k, pbd-seed). total = their sum.
   double kinetic_energy = 0.0;    // J
   double potential_energy = 0.0;  // J
   double elastic_energy = 0.0;    // J

@@ -563,6 +563,7 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
     set_attr(file, "config", header.config);
     set_attr(file, "dt", header.dt);
     set_attr(file, "steps_planned", static_cast<long long>(header.steps_planned));
+    set_attr(file, "material", header.material);
     set_attr(file, "steps_completed", 0LL);
     set_attr(file, "warnings", std::string());
     set_attr(file, "warning_count", 0LL);
@@ -578,6 +579,12 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
     set_attr(file, "cxx_flags", build.cxx_flags);
 
     write_model(file, model);
+    if (!header.pbd_stiffness.empty()) {
+      H5::Group g = file.openGroup("/model");
+      h5::write(g, "pbd_stiffness", header.pbd_stiffness, "1",
+                "k, PBD's stiffness per projection, that pbd used for each constraint (model "
+                "order): " + header.pbd_stiffness_rule);
+    }
 
     // Series.
     H5::Group series_group = file.createGroup("/series");
@@ -822,6 +829,8 @@ RunFileData read_run_file(const std::filesystem::path& path, const RunFileParts&
       if (parts.model) {
         read_model(model, data.model);
         data.model.group_names = data.group_names;
+        if (model.nameExists("pbd_stiffness"))
+          data.pbd_stiffness = h5::read_doubles(model.openDataSet("pbd_stiffness"));
       }
     }
 

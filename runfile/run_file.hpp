@@ -49,6 +49,14 @@ struct RunHeader {
   std::string config;         // the whole resolved configuration as TOML text
   double dt = 0.0;            // s
   long steps_planned = 0;
+  // What the solver takes each constraint's material from (root attribute "material", one line
+  // per constraint group; solvers/pbd_material.hpp pbd_material_text for pbd), "" when not told.
+  std::string material;
+  // pbd: the k it projects each model constraint with (model order; derived from the compliance
+  // for the run's substep, or the explicit override), written as /model/pbd_stiffness with the
+  // rule as its doc. Empty for the other solvers (no dataset).
+  std::vector<double> pbd_stiffness;
+  std::string pbd_stiffness_rule;
 };
 
 class RunFileWriter {
@@ -98,6 +106,9 @@ struct RunFileData {
   std::vector<double> frame_time;  // (F) s
   std::vector<Points> frames;      // (F or 1) frames of (n x 3) m
   std::vector<Points> velocities;  // the same in m/s (NaN rows where a frame came without them)
+  // /model/pbd_stiffness (parts.model): the k a pbd run projected each constraint with; empty
+  // for the other solvers.
+  std::vector<double> pbd_stiffness;
   // The model (parts.model): what /model stores (particles, gravity, topology, constraints and
   // group names); the rest of a Model (colliders, FEM elements, attachments, motions,
   // observables) is not in the file and stays empty.

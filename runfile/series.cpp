@@ -59,7 +59,10 @@ const std::array kSeries = {
     SeriesSpec{"potential_energy", "J", "gravitational energy -m g . x of dynamic particles", 1,
                true, PBDBENCH_SAMPLE(potential_energy)},
     SeriesSpec{"elastic_energy", "J",
-               "sum of C^2 / (2 alpha) over compliant constraints (alpha > 0)", 1, true,
+               "the scene's physical material's energy, the same for every solver: sum of C^2 / "
+               "(2 alpha) over compliant constraints (alpha > 0) plus the FEM elements' energy; NaN "
+               "where the run does not simulate that material (pbd with an explicit k, pbd-seed)",
+               1, true,
                PBDBENCH_SAMPLE(elastic_energy)},
     SeriesSpec{"total_energy", "J", "kinetic + potential + elastic", 1, true,
                PBDBENCH_SAMPLE(total_energy)},

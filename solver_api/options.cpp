@@ -45,6 +45,17 @@ bool parse_precision(const std::string& name, Precision& out) {
   return true;
 }
 
+const char* to_string(PbdMaterial material) {
+  return material == PbdMaterial::Stiffness ? "stiffness" : "compliance";
+}
+
+bool parse_pbd_material(const std::string& name, PbdMaterial& out) {
+  if (name == "compliance") out = PbdMaterial::Compliance;
+  else if (name == "stiffness") out = PbdMaterial::Stiffness;
+  else return false;
+  return true;
+}
+
 int available_cores() {
   int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   cpu_set_t set;
@@ -234,8 +245,14 @@ std::vector<OptionRow> make_rows() {
               "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
               "1 by default (docs/performance.md)"));
   // [solver.pbd], [solver.xpbd]
+  add(named("solver.pbd.material", &S::pbd_material, {"compliance", "stiffness"}, parse_pbd_material,
+            "pbd: where each constraint's per-iteration stiffness k comes from: compliance (the "
+            "scene's one physical material, the *_compliance keys; k derived per substep by the "
+            "effective-stiffness law of Mueller et al. 2007, docs/solvers.md) or stiffness (an "
+            "explicit override: the *_stiffness keys are k itself)"));
   add(boolean("solver.pbd.stiffness_correction", &S::pbd_stiffness_correction,
-              "pbd: use k' = 1 - (1 - k)^(1/iterations) (Mueller et al. 2007, sec. 3.3)"));
+              "pbd with material = stiffness: use k' = 1 - (1 - k)^(1/iterations) (Mueller et "
+              "al. 2007, sec. 3.3)"));
   add(real("solver.pbd.velocity_damping", &S::pbd_velocity_damping, "1", within(0, 1),
            "pbd: damping of the motion relative to the rigid modes (Mueller et al. 2007, sec. 3.5)"));
   add(boolean("solver.xpbd.residuals", &S::xpbd_residuals,

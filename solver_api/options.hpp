@@ -57,6 +57,21 @@ const char* to_string(Precision precision);  // "double", "float"
 // Parses the names above; returns false when unknown.
 bool parse_precision(const std::string& name, Precision& out);
 
+// Where pbd takes its per-iteration stiffness k of each constraint from (solver.pbd.material;
+// solvers/pbd_material.hpp, docs/solvers.md "One material").
+enum class PbdMaterial : std::uint8_t {
+  Compliance,  // the default: the scene's physical material, its compliance alpha; k is derived
+               // from it per substep by the effective-stiffness law of Mueller et al. 2007
+  Stiffness,   // an explicit override: the scene's *_stiffness keys, k itself (the studies of
+               // k: Mueller 2007's own experiments, the seed article's material)
+};
+
+const char* to_string(PbdMaterial material);  // "compliance", "stiffness"
+// Parses the names above; returns false when unknown.
+bool parse_pbd_material(const std::string& name, PbdMaterial& out);
+
+
+
 // The CPUs this process may run on (its affinity mask), at least 1, and at most the share in the
 // environment variable PBDBENCH_CORES when it holds a whole number >= 1 (sweep --jobs N gives
 // each of its runs max(1, cores / N)): what solver.threads = 0 means.
@@ -93,7 +108,9 @@ struct SolverOptions {
                                     // threads were slower (docs/performance.md)
 
   // [solver.pbd]: Mueller et al. 2007.
+  PbdMaterial pbd_material = PbdMaterial::Compliance;  // solver.pbd.material
   bool pbd_stiffness_correction = false;  // solver.pbd.stiffness_correction: k' = 1-(1-k)^(1/n)
+                                          // of an explicit k (material = "stiffness" only)
   double pbd_velocity_damping = 0.0;      // solver.pbd.velocity_damping: k_damping in [0, 1],
                                           // sec. 3.5, damps motion relative to the rigid modes
 

@@ -11,6 +11,7 @@
 #include "core/cancel.hpp"
 #include "core/constraint_functions.hpp"
 #include "solvers/kernels.hpp"
+#include "solvers/pbd_material.hpp"
 #include "solvers/projection_kernels.hpp"
 #include "solvers/projection_wide.hpp"
 #include "solvers/staged_tasks.hpp"
@@ -86,7 +87,13 @@ class Program final : public CompiledProjection {
       default: per_item_ = true;
     }
     if (one_by_one && order_ != ProjectionOrder::Jacobi) per_item_ = true;
-    build_blocks(model, options, group_of);
+    if (rule_ == ProjectionRule::Pbd) {
+      pbd_derived_ = options.pbd_material == PbdMaterial::Compliance;
+      pbd_iterations_ = options.iterations;
+      if (pbd_derived_) pbd_inverse_mass_sums_ = pbd_inverse_mass_sums(model);
+      else pbd_stiffness_ = pbd_stiffness(model, options, {}, 0.0);
+    }
+    build_blocks(model, group_of);
     for (int k = 0; k < kKinds; ++k) views_[static_cast<size_t>(k)] = view(blocks_[static_cast<size_t>(k)]);
     P_.assign(static_cast<size_t>(kStride) * static_cast<size_t>(particles_), T(0));
     if (damped_) X0_ = P_;
@@ -100,8 +107,43 @@ class Program final : public CompiledProjection {
     const bool same = &model == compiled_model_;
     if (!same || !rest_compiled_) refresh_rest(model);
     rest_compiled_ = same;
-    if (rule_ != ProjectionRule::Xpbd || h == h_) return;
-    set_coefficients(h);
+    if (h == h_) return;
+    if (rule_ == ProjectionRule::Xpbd) set_coefficients(h);
+    else if (pbd_derived_) set_pbd_stiffness(model, h);
+  }
+
+  // pbd: the projection's coefficients for stiffness k (a_i = k w_i / (w0 + w1), the share of
+  // the correction particle i takes, for distance; k for the other kinds).
+  static void pbd_coefficients(const Model& model, const Constraint& c, double k,
+                               std::array<T, KindBlock<T>::kCoefficients>& coef) {
+    if (c.kind == ConstraintKind::Distance) {
+      const double w0 = model.inv_mass[static_cast<size_t>(c.particles[0])];
+      const double w1 = model.inv_mass[static_cast<size_t>(c.particles[1])];
+      const double wsum = w0 + w1;
+      coef[0] = static_cast<T>(k * w0 / wsum);
+      coef[1] = static_cast<T>(k * w1 / wsum);
+    } else {
+      coef[0] = static_cast<T>(k);
+    }
+  }
+
+  // pbd with solver.pbd.material = compliance: each constraint's k for the substep h, derived
+  // from its compliance (solvers/pbd_material.hpp).
+  void set_pbd_stiffness(const Model& model, double h) {
+    h_ = h;
+    for (int kind = 0; kind < kKinds; ++kind) {
+      KindBlock<T>& b = blocks_[static_cast<size_t>(kind)];
+      for (int s = 0; s < b.count; ++s) {
+        const size_t z = static_cast<size_t>(s);
+        const size_t j = static_cast<size_t>(b.item[z]);
+        const double k = pbd_stiffness_from_compliance(b.compliance[z], pbd_inverse_mass_sums_[j], h,
+                                                       pbd_iterations_);
+        b.stiffness[z] = k;
+        std::array<T, KindBlock<T>::kCoefficients> coef{};
+        pbd_coefficients(model, model.constraints[j], k, coef);
+        for (size_t n = 0; n < coef.size(); ++n) b.coef[n][z] = coef[n];
+      }
+    }
   }
 
   void refresh_rest(const Model& model) {
@@ -309,7 +351,7 @@ class Program final : public CompiledProjection {
     return !(w > 0.0) && !(c.compliance > 0.0);
   }
 
-  void build_blocks(const Model& model, const SolverOptions& options, const std::vector<int>& group_of) {
+  void build_blocks(const Model& model, const std::vector<int>& group_of) {
     // Sort key: group, kind, anchored, damped, index (per_item_: the model's order).
     struct Key {
       int group, kind, anchored, damped, index;
@@ -352,30 +394,21 @@ class Program final : public CompiledProjection {
       b.item.push_back(key.index);
       b.rest.push_back(static_cast<T>(c.rest));
       b.rest_double.push_back(c.rest);
-      double wsum = 0.0;
       for (int i = 0; i < b.arity; ++i) {
         const int p = c.particles[static_cast<size_t>(i)];
         b.particle[static_cast<size_t>(i)].push_back(p);
-        const double w = model.inv_mass[static_cast<size_t>(p)];
-        b.inv_mass[static_cast<size_t>(i)].push_back(static_cast<T>(w));
-        wsum += w;
+        b.inv_mass[static_cast<size_t>(i)].push_back(static_cast<T>(model.inv_mass[static_cast<size_t>(p)]));
       }
-      const double k = options.pbd_stiffness_correction
-                           ? pbd_corrected_stiffness(c.stiffness, options.iterations)
-                           : c.stiffness;
+      // pbd: the explicit k (solver.pbd.material = stiffness), or 1 until set_substep derives
+      // it from the compliance for its h (solvers/pbd_material.hpp).
+      const double k = rule_ != ProjectionRule::Pbd || pbd_derived_
+                           ? 1.0
+                           : pbd_stiffness_[static_cast<size_t>(key.index)];
       b.stiffness.push_back(k);
       b.compliance.push_back(c.compliance);
       b.damping.push_back(c.damping);
       std::array<T, KindBlock<T>::kCoefficients> coef{};
-      if (rule_ == ProjectionRule::Pbd) {
-        if (c.kind == ConstraintKind::Distance) {
-          // a_i = k w_i / (w0 + w1), the share of the correction particle i takes.
-          coef[0] = static_cast<T>(k * model.inv_mass[static_cast<size_t>(c.particles[0])] / wsum);
-          coef[1] = static_cast<T>(k * model.inv_mass[static_cast<size_t>(c.particles[1])] / wsum);
-        } else {
-          coef[0] = static_cast<T>(k);
-        }
-      }
+      if (rule_ == ProjectionRule::Pbd) pbd_coefficients(model, c, k, coef);
       for (size_t n = 0; n < coef.size(); ++n) b.coef[n].push_back(coef[n]);
       if (is_fem_kind(c.kind)) {
         const FemElement& e = model.elements[static_cast<size_t>(c.element)];
@@ -830,7 +863,12 @@ class Program final : public CompiledProjection {
   bool averaging_;
   int particles_;
   int items_;
-  double h_ = 0.0;  // the h of the xpbd coefficients, 0 before the first substep
+  double h_ = 0.0;  // the h of the xpbd coefficients (pbd: of the derived k), 0 before the
+                    // first substep
+  bool pbd_derived_ = false;                   // pbd, solver.pbd.material = compliance
+  int pbd_iterations_ = 1;                     // n of the derivation
+  std::vector<double> pbd_inverse_mass_sums_;  // (m) S of each model constraint, when derived
+  std::vector<double> pbd_stiffness_;          // (m) the explicit k (or k'), when not derived
   bool per_item_ = false;
   bool parallel_ = false;
   bool damped_ = false;

@@ -7,8 +7,11 @@
 //   p_i = x_i + h v_i                                                          (line 7)
 //   contacts = find_contacts(p, t_end, contact_margin)                         (line 8)
 //   `iterations` sweeps in the chosen order: each model constraint projected with its
-//   stiffness k (or k' = 1-(1-k)^(1/iterations) with solver.pbd.stiffness_correction), each
-//   contact projected with k = 1 when C < 0                                    (lines 9-11)
+//   stiffness k, each contact projected with k = 1 when C < 0                  (lines 9-11)
+//   k comes from the scene's one material (solvers/pbd_material.hpp): derived from the
+//   constraint's compliance for this h and `iterations` (solver.pbd.material = "compliance", the
+//   default), or the explicit *_stiffness override (material = "stiffness"; k' = 1-(1-k)^(1/n)
+//   with solver.pbd.stiffness_correction)
 //   v_i = (p_i - x_i) / h,  x_i = p_i                                          (lines 12-15)
 //   velocity pass: friction and restitution on the touching contacts           (line 16)
 // The sweeps run compiled (solvers/compiled_projection.hpp) in the run's precision: with
@@ -28,6 +31,7 @@
 #include "solvers/compiled_projection.hpp"
 #include "solvers/kernels.hpp"
 #include "solvers/ordering.hpp"
+#include "solvers/pbd_material.hpp"
 #include "solvers/step_common.hpp"
 #include "solvers/substep.hpp"
 #include "solver_api/velocity_pass.hpp"
@@ -47,11 +51,10 @@ class PbdSolver final : public Solver {
     if (path != ProjectionPath::PerItem)
       compiled_ = compile_projection(model, options, ProjectionRule::Pbd, ordering_,
                                      path == ProjectionPath::CompiledOneByOne);
-    stiffness_.reserve(model.constraints.size());
-    for (const Constraint& c : model.constraints)
-      stiffness_.push_back(options.pbd_stiffness_correction
-                               ? pbd_corrected_stiffness(c.stiffness, options.iterations)
-                               : c.stiffness);
+    if (options.pbd_material == PbdMaterial::Compliance)
+      inverse_mass_sums_ = pbd_inverse_mass_sums(model);
+    else
+      stiffness_ = pbd_stiffness(model, options, inverse_mass_sums_, 0.0);
     if (options.pbd_velocity_damping > 0.0) bodies_ = dynamic_bodies(model);
   }
 
@@ -94,6 +97,10 @@ class PbdSolver final : public Solver {
         compiled_->end_substep(work_.p, nullptr, work_.contact_lambda, work_.contact_active);
         for (char a : work_.contact_active) report.active_contacts += a;
       } else {
+        if (options_.pbd_material == PbdMaterial::Compliance && h != stiffness_h_) {
+          stiffness_ = pbd_stiffness(model, options_, inverse_mass_sums_, h);
+          stiffness_h_ = h;
+        }
         run_sweeps(model, options_, ordering_, state.step, sub.index, nullptr, work_, report,
                    [&](int j, Stencil& st) { return project(model, j, t_end, st); });
       }
@@ -124,7 +131,10 @@ class PbdSolver final : public Solver {
   int particles_;
   int constraints_;
   Ordering ordering_;
-  std::vector<double> stiffness_;         // (m) k, or k' with the stiffness correction
+  std::vector<double> stiffness_;         // (m) k of the per-item path (explicit, or derived
+                                          // for the substep stiffness_h_)
+  double stiffness_h_ = 0.0;
+  std::vector<double> inverse_mass_sums_;  // (m) S of pbd_material.hpp, when derived
   std::vector<std::vector<int>> bodies_;  // for velocity damping
   SubstepScratch work_;                   // scratch, kept between steps
   std::unique_ptr<CompiledProjection> compiled_;  // null on the per-item path
@@ -134,13 +144,9 @@ class PbdSolver final : public Solver {
 
 std::unique_ptr<Solver> make_pbd_solver(const SolverOptions& options, const Model& model,
                                         ProjectionPath path) {
-  // A FEM element is a material (Pa); PBD's per-constraint stiffness k is not one.
-  const bool fem_constraints = std::any_of(model.constraints.begin(), model.constraints.end(),
-                                           [](const Constraint& c) { return is_fem_kind(c.kind); });
-  if (!model.elements.empty() || fem_constraints)
-    throw std::invalid_argument(
-        "pbd has no FEM material: its stiffness k is not a material; use xpbd or a reference "
-        "solver (the model has " + std::to_string(model.elements.size()) + " FEM elements)");
+  // A FEM element is a material (Pa) with no per-constraint stiffness k.
+  if (const std::string problem = pbd_material_problem(model); !problem.empty())
+    throw std::invalid_argument(problem);
   return std::make_unique<PbdSolver>(options, model, path);
 }
 

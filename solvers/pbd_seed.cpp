@@ -692,8 +692,9 @@ std::unique_ptr<Solver> make_pbd_seed_solver(const SolverOptions& options, const
                                            [](const Constraint& c) { return is_fem_kind(c.kind); });
   if (!model.elements.empty() || fem_constraints)
     throw std::invalid_argument(
-        "pbd-seed has no FEM material: its stiffness k is not a material; use xpbd or a reference "
-        "solver (the model has " + std::to_string(model.elements.size()) + " FEM elements)");
+        "pbd-seed has no FEM material: its stiffness k is not a material; set scene.material = "
+        "\"none\" or use xpbd or a reference solver (the model has " +
+        std::to_string(model.elements.size()) + " FEM elements)");
   const SeedFixes fix(options.seed_fixes);
   if (fix(10)) return std::make_unique<PbdSeedSolver<double>>(options, model);  // D10 fixed
   return std::make_unique<PbdSeedSolver<float>>(options, model);                // D10: float

@@ -3,6 +3,7 @@
 // docs/scenarios.md is a hand-written introduction, a marker line, and schema_markdown(). After a
 // schema change, regenerate it with
 //   PBDBENCH_UPDATE_DOCS=1 test_config --gtest_filter=Describe.DocsContainTheSchema
+#include <cctype>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -187,12 +188,35 @@ TEST(Describe, ForAReaderFitsTheWidthShowsTheSolversKeysAndWhatItReads) {
   EXPECT_FALSE(contains(x, "scene.stiffness ="));
   EXPECT_FALSE(contains(x, "solver.seed."));
   EXPECT_TRUE(contains(x, "alpha = 0.001"));
-  EXPECT_TRUE(contains(p, "scene.stiffness = 0.5"));
-  EXPECT_FALSE(contains(p, "scene.compliance ="));
-  EXPECT_TRUE(contains(p, "solver.pbd.stiffness_correction"));
-  EXPECT_TRUE(contains(p, "k = 0.5"));
+  // pbd by default: the compliance, and the k derived from it with the rule named.
+  EXPECT_TRUE(contains(p, "scene.compliance = 0.001"));
+  EXPECT_FALSE(contains(p, "scene.stiffness ="));
+  EXPECT_TRUE(contains(p, "solver.pbd.material = compliance"));
+  // (The lines wrap at 100 columns: the words are read with the line breaks taken out.)
+  auto flat = [](const std::string& text) {
+    std::string out;
+    for (char ch : text)
+      if (!(std::isspace(static_cast<unsigned char>(ch)) && !out.empty() && out.back() == ' '))
+        out += std::isspace(static_cast<unsigned char>(ch)) ? ' ' : ch;
+    return out;
+  };
+  EXPECT_TRUE(contains(flat(p), "derived from alpha = 0.001 (Mueller 2007 effective stiffness: k = 1 - (1 + h^2 S / alpha)^(-1/n)"))
+      << p;
+  EXPECT_FALSE(contains(p, "k = 0.5"));
+  // pbd with the explicit override: the stiffness keys, stated as an override.
+  const Config pbd_k = load_text(chain, "d.toml", sets({"solver.name=pbd", "solver.pbd.material=stiffness"}));
+  const std::string pk = describe_config(pbd_k, false, 100);
+  EXPECT_TRUE(contains(pk, "scene.stiffness = 0.5"));
+  EXPECT_FALSE(contains(pk, "scene.compliance ="));
+  EXPECT_TRUE(contains(pk, "solver.pbd.stiffness_correction"));
+  EXPECT_TRUE(contains(flat(pk), "k = 0.5 (explicit override"));
+  // pbd-seed: the listing's k.
+  const Config seed = load_text(chain, "d.toml", sets({"solver.name=pbd-seed"}));
+  const std::string sk = describe_config(seed, false, 100);
+  EXPECT_TRUE(contains(sk, "scene.stiffness = 0.5"));
+  EXPECT_TRUE(contains(flat(sk), "k = 0.5 (the seed listing's stiffness"));
   const std::string all = describe_config(pbd, true, 100);
-  EXPECT_TRUE(contains(all, "scene.compliance = 0.001"));
+  EXPECT_TRUE(contains(all, "scene.stiffness = 0.5"));
   EXPECT_TRUE(contains(all, "solver.seed."));
 }
 

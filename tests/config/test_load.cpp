@@ -451,5 +451,29 @@ TEST(LoadErrors, AHugeUnknownKeyIsCutInTheMessage) {
   EXPECT_NE(std::string(e.what()).find("(1048582 characters)"), std::string::npos);
 }
 
+// One material (solvers/pbd_material.hpp): what pbd cannot honour is refused, naming the key.
+TEST(LoadErrors, PbdRefusesAConstraintDampingAndTheCorrectionOfADerivedStiffness) {
+  const std::string chain =
+      "[solver]\nname = \"pbd\"\n[scene]\nkind = \"chain\"\nlinks = 3\ndamping = 0.5\n";
+  const ConfigError d = load_error(chain);
+  EXPECT_EQ(d.source().file, "bad.toml");
+  EXPECT_EQ(d.source().line, 6);
+  EXPECT_EQ(d.key(), "scene.damping");
+  EXPECT_NE(std::string(d.what()).find("no pbd meaning"), std::string::npos) << d.what();
+  // xpbd reads it.
+  EXPECT_NO_THROW((void)load_text(chain, "ok.toml", testing::sets({"solver.name=xpbd"})));
+  // The correction of an explicit k, with k derived from the compliance.
+  const std::string corrected =
+      "[solver]\nname = \"pbd\"\n[solver.pbd]\nstiffness_correction = true\n[scene]\nkind = \"chain\"\n";
+  const ConfigError c = load_error(corrected);
+  EXPECT_EQ(c.key(), "solver.pbd.stiffness_correction");
+  EXPECT_EQ(c.source().line, 4);
+  EXPECT_NE(std::string(c.what()).find("solver.pbd.material = \"stiffness\""), std::string::npos) << c.what();
+  EXPECT_NO_THROW((void)load_text(corrected, "ok.toml", testing::sets({"solver.pbd.material=stiffness"})));
+  // An unknown material.
+  const ConfigError m = load_error("[solver]\nname = \"pbd\"\n[solver.pbd]\nmaterial = \"steel\"\n");
+  EXPECT_EQ(m.key(), "solver.pbd.material");
+}
+
 }  // namespace
 }  // namespace pbdbench::config

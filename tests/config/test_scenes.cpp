@@ -342,9 +342,9 @@ TEST(Catalog, FemScenesRunWithXpbdOnly) {
       (void)make_solver(o, s.model);
       ADD_FAILURE() << name << " accepted FEM elements";
     } catch (const std::invalid_argument& e) {
-      EXPECT_EQ(std::string(e.what()).rfind(std::string(name) + " has no FEM material: its stiffness k is not a "
-                                            "material; use xpbd or a reference solver", 0), 0u)
-          << e.what();
+      // Both name the key to set.
+      EXPECT_NE(std::string(e.what()).find(std::string(name) + " has no"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("scene.material"), std::string::npos) << e.what();
     }
   }
   const Config corotated = load("cantilever_fem", sets({"scene.material=corotated"}));

@@ -17,6 +17,8 @@
 #include "harness/runner.hpp"
 #include "runfile/run_file.hpp"
 #include "runfile/series.hpp"
+#include "core/constraint_functions.hpp"
+#include "solvers/pbd_material.hpp"
 
 namespace fs = std::filesystem;
 using namespace pbdbench;
@@ -433,4 +435,66 @@ TEST(Runner, CollapsingFemBarIsWarnedNotSilentlyComplete) {
   run_config(config::load(PBDBENCH_SOURCE_DIR "/scenarios/cantilever_fem.toml", bar), ok);
   const RunFileData held = read_run_file(ok);
   EXPECT_EQ(held.attributes.at("warnings").find("volume"), std::string::npos) << held.attributes.at("warnings");
+}
+
+// One material (solvers/pbd_material.hpp, docs/solvers.md): elastic_energy is the scene's
+// physical material's energy, sum C^2 / (2 alpha), whatever the solver, measured at the run's own
+// positions; NaN where the run does not simulate that material (pbd with an explicit k). The run
+// file says what pbd used: the root attribute "material" and /model/pbd_stiffness.
+TEST(Runner, ElasticEnergyIsTheSceneMaterialsWhateverTheSolver) {
+  const std::vector<config::Override> base = {{"scene.links", "5"},
+                                              {"scene.compliance", "0.002"},
+                                              {"scene.angle_deg", "40"},
+                                              {"time.duration", "0.2"}};
+  for (const char* solver : {"pbd", "xpbd"}) {
+    SCOPED_TRACE(solver);
+    std::vector<config::Override> o = base;
+    o.push_back({"solver.name", solver});
+    const config::Config cfg = config::load("hanging_chain", o);
+    const fs::path out = temp_file(std::string("elastic_") + solver + ".h5");
+    ASSERT_EQ(run_config(cfg, out).status, RunStatus::Complete);
+    RunFileParts parts;
+    parts.frames = RunFileParts::Frames::Last;
+    parts.model = true;
+    const RunFileData d = read_run_file(out, parts);
+    // The formula at the last frame's positions.
+    double energy = 0.0;
+    for (const Constraint& c : d.model.constraints) {
+      const double C = eval_constraint(c, d.frames.back()).C;
+      energy += C * C / (2.0 * c.compliance);
+    }
+    const double series = d.series.at("elastic_energy").back();
+    EXPECT_GT(energy, 0.0);
+    EXPECT_NEAR(series, energy, 1e-12 * energy);
+    EXPECT_NEAR(d.series.at("total_energy").back(),
+                d.series.at("kinetic_energy").back() + d.series.at("potential_energy").back() + energy,
+                1e-9 * std::abs(d.series.at("total_energy").back()) + 1e-12);
+    const std::string material = d.attributes.at("material");
+    if (std::string(solver) == "pbd") {
+      EXPECT_NE(material.find("derived from alpha = 0.002"), std::string::npos) << material;
+      const SolverOptions so = config::solver_options(cfg);
+      const std::vector<double> S = pbd_inverse_mass_sums(d.model);
+      ASSERT_EQ(d.pbd_stiffness.size(), d.model.constraints.size());
+      for (size_t j = 0; j < S.size(); ++j)
+        EXPECT_EQ(d.pbd_stiffness[j], pbd_stiffness_from_compliance(0.002, S[j], 1.0 / 60.0 / so.substeps,
+                                                                    so.iterations));
+    } else {
+      EXPECT_NE(material.find("alpha = 0.002"), std::string::npos) << material;
+      EXPECT_TRUE(d.pbd_stiffness.empty());
+    }
+  }
+  // The explicit override: pbd does not simulate the compliance, and the energy is NaN (the run
+  // is complete, not an explosion).
+  std::vector<config::Override> o = base;
+  o.push_back({"solver.name", "pbd"});
+  o.push_back({"solver.pbd.material", "stiffness"});
+  o.push_back({"scene.stiffness", "0.5"});
+  const fs::path out = temp_file("elastic_pbd_override.h5");
+  ASSERT_EQ(run_config(config::load("hanging_chain", o), out).status, RunStatus::Complete);
+  RunFileParts parts;
+  parts.model = true;
+  const RunFileData d = read_run_file(out, parts);
+  for (double e : d.series.at("elastic_energy")) EXPECT_TRUE(std::isnan(e));
+  EXPECT_NE(d.attributes.at("material").find("k = 0.5 (explicit override"), std::string::npos);
+  for (double k : d.pbd_stiffness) EXPECT_EQ(k, 0.5);
 }

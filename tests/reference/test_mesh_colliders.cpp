@@ -24,7 +24,8 @@
 #include "core/generators.hpp"
 #include "core/mesh_collider.hpp"
 #include "reference/contact_potential.hpp"
-#include "solvers/solver.hpp"
+#include "catalog/solver_catalog.hpp"
+#include "solver_api/solver.hpp"
 #include "tests/mesh_fixtures.hpp"
 
 namespace pbdbench {

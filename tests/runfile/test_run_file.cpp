@@ -156,7 +156,7 @@ TEST(runfile_file, RoundTrip) {
   const std::set<std::string> strings = {"status", "status_reason", "scenario", "scenario_file",
                                          "solver", "config", "created", "pbdbench_version",
                                          "git_commit", "compiler", "build_type", "cxx_flags",
-                                         "warnings"};
+                                         "warnings", "material"};
   for (const auto& [name, value] : d.attributes)
     EXPECT_TRUE(strings.count(name)) << "unexpected string attribute " << name;
   EXPECT_EQ(d.attributes.size(), strings.size());

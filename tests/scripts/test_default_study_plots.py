@@ -174,8 +174,12 @@ class DefaultStudyPlots(unittest.TestCase):
         texts = legend_texts(figures["cloth_stretch_peak_vs_iterations.png"])
         self.assertIn("name=xpbd (identical to name=pbd: drawn over it)", texts)
         texts = legend_texts(figures["cloth_runs.png"])
-        copies = [t for t in texts if "identical to" in t]
+        # Each xpbd copy is named as drawn over another line: "identical to" its pbd run, or,
+        # where pbd's own runs at several iterations coincide in a panel (pbd's k derived from
+        # the cloth's compliance converges with the iterations), "=" the earliest of them.
+        copies = [t for t in texts if "solver.name-xpbd" in t and ("identical to" in t or "(= " in t)]
         self.assertEqual(len(copies), 4, texts)
+        self.assertGreaterEqual(len([t for t in copies if "identical to" in t]), 3, texts)
         # Each line has its own marker, so that the one drawn over still shows.
         ax = figures["cloth_stretch_peak_vs_iterations.png"].axes[0]
         markers = [line.get_marker() for line in ax.get_lines() if len(line.get_xdata()) > 1]

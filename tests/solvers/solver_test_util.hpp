@@ -123,9 +123,13 @@ inline Model chain_model(int links, double link, double mass, const Vec3& gravit
   return m;
 }
 
+// pbd with solver.pbd.material = "stiffness": the hand-built models here state pbd's k (their
+// `stiffness` arguments); the rule that derives k from the compliance, pbd's default, has its
+// own tests (test_pbd_material.cpp) and variants in test_compiled_projection.cpp.
 inline SolverOptions options_for(const std::string& name, int iterations = 10, int substeps = 1) {
   SolverOptions o;
   o.name = name;
+  o.pbd_material = PbdMaterial::Stiffness;
   o.iterations = iterations;
   o.substeps = substeps;
   return o;
