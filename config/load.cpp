@@ -699,6 +699,20 @@ class Loader {
       if (auto it = c.find("collider.motion");
           it != c.end() && std::get<std::string>(it->second.value) == "circle")
         nonzero(c.at("collider.motion_axis"), prefix + "motion_axis", "the axis of a circular motion");
+      if (auto it = c.find("collider.file"); it != c.end()) {
+        // A mesh collider: its OBJ must exist (read and checked when the scene is built).
+        const Entry& e = it->second;
+        const Source where = e.source.file.empty() ? colliders_[i].source : e.source;
+        const std::string& name = std::get<std::string>(e.value);
+        if (name.empty())
+          fail(where, prefix + "file", fmt::format("{}file: a mesh collider needs an OBJ file", prefix));
+        const std::filesystem::path resolved = config.file.parent_path() / name;
+        std::error_code ec;
+        const std::filesystem::file_status st = std::filesystem::status(resolved, ec);
+        if (!std::filesystem::is_regular_file(st))
+          fail(where, prefix + "file",
+               fmt::format("{}file = '{}': no such file (looked for {})", prefix, name, resolved.string()));
+      }
     }
     if (kind == "mesh") {
       const Entry& e = config.at("scene.file");

@@ -642,9 +642,52 @@ class SceneBuilder {
     return free_inverse_mass;
   }
 
+  // A [[collider]] of type mesh: the OBJ read, placed (x = position + R (scale x_file)), checked
+  // and given its BVH. Whatever is wrong names the file's line and the collider's file key.
+  MeshCollider mesh_collider(const EntryMap& c, std::size_t index) const {
+    const std::string key = "collider." + std::to_string(index) + ".file";
+    const Entry& file_entry = entry(c, "collider.file");
+    const Source where = source_or_file(file_entry.source);
+    const std::string& name = word(c, "collider.file");
+    const std::filesystem::path path = c_.file.parent_path() / name;
+    try {
+      SurfaceMesh obj = read_obj(path.string());
+      const double scale = real(c, "collider.scale");
+      const Vec3 rv = vec(c, "collider.rotation") * (std::numbers::pi / 180.0);
+      const Mat3 R = rv.norm() > 0.0 ? Mat3(Eigen::AngleAxisd(rv.norm(), rv.normalized()))
+                                     : Mat3(Mat3::Identity());
+      const Vec3 position = vec(c, "collider.position");
+      for (Eigen::Index i = 0; i < obj.vertices.rows(); ++i)
+        obj.vertices.row(i) = (position + R * (scale * obj.vertices.row(i).transpose())).transpose();
+      const std::vector<int> lines = obj.triangle_lines;
+      try {
+        MeshCollider m = make_mesh_collider(std::move(obj.vertices), std::move(obj.triangles));
+        m.file = name;
+        return m;
+      } catch (const MeshColliderError& e) {
+        const int line = e.triangle() >= 0 && static_cast<std::size_t>(e.triangle()) < lines.size()
+                             ? lines[static_cast<std::size_t>(e.triangle())]
+                             : 0;
+        throw MeshError(path.string(), line, e.what());
+      }
+    } catch (const MeshError& e) {
+      throw ConfigError(where, key, fmt::format("{} = '{}': {}", key, name, e.what()));
+    }
+  }
+
   void colliders() {
-    for (const EntryMap& c : c_.colliders) {
-      if (word(c, "collider.type") == "plane") {
+    for (std::size_t index = 0; index < c_.colliders.size(); ++index) {
+      const EntryMap& c = c_.colliders[index];
+      if (word(c, "collider.type") == "mesh") {
+        MeshCollider m = mesh_collider(c, index);
+        m.restitution = real(c, "collider.restitution");
+        m.friction = real(c, "collider.friction");
+        if (word(c, "collider.motion") != "static") {
+          model_.motions.push_back(read_motion(c, "collider.motion"));
+          m.motion = static_cast<int>(model_.motions.size()) - 1;
+        }
+        model_.meshes.push_back(std::move(m));
+      } else if (word(c, "collider.type") == "plane") {
         PlaneCollider p;
         p.normal = vec(c, "collider.normal");
         p.offset = real(c, "collider.offset");

@@ -555,15 +555,19 @@ const ColliderTable& collider_table() {
   static const ColliderTable table = [] {
     const PlaneCollider plane;
     const SphereCollider sphere;
-    const std::vector<std::string> both = {"plane", "sphere"};
+    const std::vector<std::string> all = {"plane", "sphere", "mesh"};
     const std::vector<std::string> planes = {"plane"};
     const std::vector<std::string> spheres = {"sphere"};
+    const std::vector<std::string> meshes = {"mesh"};
+    const std::vector<std::string> moving = {"sphere", "mesh"};
     ColliderTable t;
     auto add = [&t](KeySpec k, const std::vector<std::string>& types) {
       t.types[k.path] = types;
       t.keys.push_back(std::move(k));
     };
-    add(text("collider.type", "plane", {"plane", "sphere"}, "plane (a half-space) or sphere"), both);
+    add(text("collider.type", "plane", {"plane", "sphere", "mesh"},
+             "plane (a half-space), sphere, or mesh (a triangle mesh from an OBJ file)"),
+        all);
     add(vec3("collider.normal", plane.normal, "1", kAny,
              "plane normal, pointing into the allowed side (non-zero; stored as given, not "
              "normalised)"),
@@ -576,13 +580,26 @@ const ColliderTable& collider_table() {
     add(text("collider.side", "outside", {"outside", "inside", "bowl"},
              "particles stay outside, inside, or inside the lower half (bowl: open above the centre)"),
         spheres);
+    add(text("collider.file", "", {},
+             "OBJ file of the mesh, relative to the scenario file's folder (polygons fan-"
+             "triangulated; docs/scenarios.md, mesh colliders)"),
+        meshes);
+    add(vec3("collider.position", Vec3::Zero(), "m", kAny,
+             "translation of the mesh: x = position + R (scale x_file)"),
+        meshes);
+    add(vec3("collider.rotation", Vec3::Zero(), "deg", kAny,
+             "rotation R of the mesh: a rotation vector (axis times angle in degrees) about the "
+             "file's origin"),
+        meshes);
+    add(real("collider.scale", 1.0, "1", above(0), "uniform scale of the mesh's vertices"), meshes);
     add(real("collider.restitution", plane.restitution, "1", within(0, 1),
              "restitution e of contacts with this collider"),
-        both);
+        all);
     add(real("collider.friction", plane.friction, "1", at_least(0),
              "Coulomb friction mu of contacts with this collider"),
-        both);
-    for (KeySpec& k : motion_keys("collider.motion", "the sphere")) add(std::move(k), spheres);
+        all);
+    for (KeySpec& k : motion_keys("collider.motion", "the sphere or mesh (a translation)"))
+      add(std::move(k), moving);
     return t;
   }();
   return table;

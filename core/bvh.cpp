@@ -148,10 +148,13 @@ TriangleBvh::Hit TriangleBvh::closest(const Vec3& p, double max_distance) const 
   if (nodes_.empty()) return hit;
   double best = max_distance * max_distance;
   // Depth first, nearer child first; a node is skipped when its box is farther than the best.
-  std::vector<int> stack{0};
-  while (!stack.empty()) {
-    const int id = stack.back();
-    stack.pop_back();
+  // The stack holds at most one pending sibling per level (median splits: depth < 64 for any
+  // mesh that fits in memory), so it lives on the stack, not the heap.
+  std::array<int, 128> stack;
+  int top = 0;
+  stack[static_cast<size_t>(top++)] = 0;
+  while (top > 0) {
+    const int id = stack[static_cast<size_t>(--top)];
     const Node& n = nodes_[static_cast<size_t>(id)];
     ++g_visits;
     if (n.box.squared_distance(p) > best) continue;
@@ -177,11 +180,11 @@ TriangleBvh::Hit TriangleBvh::closest(const Vec3& p, double max_distance) const 
     const double dr = nodes_[static_cast<size_t>(n.right)].box.squared_distance(p);
     // Push the farther first, so the nearer is visited first.
     if (dl <= dr) {
-      stack.push_back(n.right);
-      stack.push_back(n.left);
+      stack[static_cast<size_t>(top++)] = n.right;
+      stack[static_cast<size_t>(top++)] = n.left;
     } else {
-      stack.push_back(n.left);
-      stack.push_back(n.right);
+      stack[static_cast<size_t>(top++)] = n.left;
+      stack[static_cast<size_t>(top++)] = n.right;
     }
   }
   if (hit.triangle >= 0) hit.distance = std::sqrt(best);

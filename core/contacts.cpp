@@ -14,6 +14,7 @@ const char* to_string(ContactKind kind) {
     case ContactKind::Plane: return "plane";
     case ContactKind::Sphere: return "sphere";
     case ContactKind::Particle: return "particle";
+    case ContactKind::Mesh: return "mesh";
   }
   return "unknown";
 }
@@ -145,6 +146,22 @@ std::vector<Contact> find_contacts(const Model& model, const Points& x, double t
       if (C < margin) out.push_back({ContactKind::Sphere, a, si});
     }
   }
+  for (int mi = 0; mi < static_cast<int>(model.meshes.size()); ++mi) {
+    const MeshCollider& mesh = model.meshes[static_cast<size_t>(mi)];
+    const Vec3 offset = mesh_offset(model, mesh, t);
+    const TriangleBvh::Box& box = mesh.bvh.bounds();
+    for (int a = 0; a < n; ++a) {
+      if (model.inv_mass[a] == 0.0) continue;
+      const Vec3 p = Vec3(x.row(a).transpose()) - offset;
+      if (!p.allFinite()) continue;
+      const double reach = std::max(margin, 0.0) + model.radius[a];
+      // Outside the box by more than the reach: farther from every triangle than that.
+      if (box.squared_distance(p) > reach * reach) continue;
+      const MeshDistance md = mesh_distance(mesh, p);
+      if (md.triangle >= 0 && md.distance - model.radius[a] < margin)
+        out.push_back({ContactKind::Mesh, a, mi});
+    }
+  }
   if (model.particle_contact) find_particle_pairs(model, x, margin, out);
   return out;
 }
@@ -185,6 +202,14 @@ ConstraintEval eval_contact(const Model& model, const Contact& contact, const Po
       }
       return e;
     }
+    case ContactKind::Mesh: {
+      const MeshCollider& mesh = model.meshes[static_cast<size_t>(contact.b)];
+      const MeshDistance md = mesh_distance(mesh, xa - mesh_offset(model, mesh, t));
+      e.valid = md.triangle >= 0;
+      e.C = md.distance - ra;
+      e.grad[0] = md.normal;
+      return e;
+    }
   }
   return e;
 }
@@ -194,6 +219,7 @@ double contact_restitution(const Model& model, const Contact& c) {
     case ContactKind::Plane: return model.planes[static_cast<size_t>(c.b)].restitution;
     case ContactKind::Sphere: return model.spheres[static_cast<size_t>(c.b)].restitution;
     case ContactKind::Particle: return model.particle_restitution;
+    case ContactKind::Mesh: return model.meshes[static_cast<size_t>(c.b)].restitution;
   }
   return 0.0;
 }
@@ -203,6 +229,7 @@ double contact_friction(const Model& model, const Contact& c) {
     case ContactKind::Plane: return model.planes[static_cast<size_t>(c.b)].friction;
     case ContactKind::Sphere: return model.spheres[static_cast<size_t>(c.b)].friction;
     case ContactKind::Particle: return model.particle_friction;
+    case ContactKind::Mesh: return model.meshes[static_cast<size_t>(c.b)].friction;
   }
   return 0.0;
 }
@@ -216,6 +243,11 @@ Vec3 contact_surface_velocity(const Model& model, const Contact& c, const Points
       return motion_velocity(model.motions[static_cast<size_t>(s.motion)], t);
     }
     case ContactKind::Particle: return v.row(c.b);
+    case ContactKind::Mesh: {
+      const MeshCollider& m = model.meshes[static_cast<size_t>(c.b)];
+      if (m.motion < 0) return Vec3::Zero();
+      return motion_velocity(model.motions[static_cast<size_t>(m.motion)], t);
+    }
   }
   return Vec3::Zero();
 }

@@ -10,21 +10,23 @@
 
 namespace pbdbench {
 
-enum class ContactKind : std::uint8_t { Plane, Sphere, Particle };
+enum class ContactKind : std::uint8_t { Plane, Sphere, Particle, Mesh };
 
-const char* to_string(ContactKind kind);  // "plane", "sphere", "particle"
+const char* to_string(ContactKind kind);  // "plane", "sphere", "particle", "mesh"
 
 struct Contact {
   ContactKind kind = ContactKind::Plane;
   int a = -1;  // the particle
   int b = -1;  // Plane: index into Model::planes; Sphere: into Model::spheres;
-               // Particle: the second particle (a < b)
+               // Particle: the second particle (a < b); Mesh: into Model::meshes
 };
 
 // All candidate contacts whose C(x) < margin, for particles with inv_mass > 0 (and, for particle
 // pairs, at least one of them dynamic), at time t (moving spheres). Particle pairs joined by a
-// constraint are skipped. The order is deterministic: planes, then spheres, then particle pairs,
-// each sorted by (a, b). Particle pairs are found with a uniform grid, not by testing all pairs.
+// constraint are skipped. The order is deterministic: planes, then spheres, then meshes, then
+// particle pairs, each sorted by (a, b). Particle pairs are found with a uniform grid, not by
+// testing all pairs; a mesh is tested only for the particles within margin + radius of its
+// bounding box (its BVH then finds the nearest triangle).
 std::vector<Contact> find_contacts(const Model& model, const Points& x, double t, double margin);
 
 // Evaluate a contact (C >= 0 is separated; C < 0 is penetration, in metres). Uses the unit plane
@@ -33,6 +35,9 @@ std::vector<Contact> find_contacts(const Model& model, const Points& x, double t
 //   Plane:    C = (n . x_a + offset) / |n| - r_a
 //   Sphere:   Outside: |x_a - c(t)| - (R + r_a);  Inside/Bowl: (R - r_a) - |x_a - c(t)|
 //   Particle: C = |x_a - x_b| - (r_a + r_b)
+//   Mesh:     C = s(x_a - offset(t)) - r_a, s the mesh's signed distance (core/mesh_collider.hpp:
+//             the closest point of the nearest triangle, signed by the feature's pseudo-normal);
+//             grad = its gradient, the unit direction from the closest point (sign included)
 ConstraintEval eval_contact(const Model& model, const Contact& contact, const Points& x, double t);
 
 // Restitution and friction coefficients that apply to a contact.
@@ -40,7 +45,7 @@ double contact_restitution(const Model& model, const Contact& contact);
 double contact_friction(const Model& model, const Contact& contact);
 
 // Velocity of the collider surface at the contact (m/s): zero for planes and fixed spheres, the
-// sphere's motion velocity for moving spheres, the other particle's velocity for particle pairs
+// sphere's (or mesh's) motion velocity for moving spheres (meshes), the other particle's velocity for particle pairs
 // (taken from v).
 Vec3 contact_surface_velocity(const Model& model, const Contact& contact, const Points& v,
                               double t);

@@ -204,9 +204,11 @@ SurfaceMesh read_obj(const std::string& path) {
         throw MeshError(path, f.line, "vertex index " + std::to_string(r) +
                                           " is out of range: the file has " + std::to_string(n) +
                                           " vertices");
-    for (size_t k = 1; k + 1 < f.refs.size(); ++k)
+    for (size_t k = 1; k + 1 < f.refs.size(); ++k) {
       mesh.triangles.push_back({static_cast<int>(f.refs[0] - 1), static_cast<int>(f.refs[k] - 1),
                                 static_cast<int>(f.refs[k + 1] - 1)});
+      mesh.triangle_lines.push_back(f.line);
+    }
   }
   return mesh;
 }

@@ -26,6 +26,7 @@ class MeshError : public std::runtime_error {
 struct SurfaceMesh {
   Points vertices;                            // (n x 3)
   std::vector<std::array<int, 3>> triangles;  // 0-based, polygons fan-triangulated
+  std::vector<int> triangle_lines;            // the file's line of each triangle's face (OBJ)
 };
 
 struct TetMesh {

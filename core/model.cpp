@@ -100,6 +100,11 @@ Vec3 sphere_center(const Model& model, const SphereCollider& s, double t) {
   return s.center + motion_offset(model.motions[static_cast<size_t>(s.motion)], t);
 }
 
+Vec3 mesh_offset(const Model& model, const MeshCollider& mesh, double t) {
+  if (mesh.motion < 0) return Vec3::Zero();
+  return motion_offset(model.motions[static_cast<size_t>(mesh.motion)], t);
+}
+
 Vec3 up_direction(const Model& model) {
   const double g = model.gravity.norm();
   if (g == 0.0) return Vec3::UnitY();

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/constraint_kind.hpp"
+#include "core/mesh_collider.hpp"
 #include "core/types.hpp"
 
 namespace pbdbench {
@@ -164,6 +165,7 @@ struct Model {
   // Colliders and particle-particle contact.
   std::vector<PlaneCollider> planes;
   std::vector<SphereCollider> spheres;
+  std::vector<MeshCollider> meshes;     // triangle meshes (core/mesh_collider.hpp)
   bool particle_contact = false;        // contacts between particles not joined by a constraint
   double particle_restitution = 0.0;    // e for particle-particle contacts
   double particle_friction = 0.0;       // mu for particle-particle contacts
@@ -190,6 +192,9 @@ Vec3 attachment_target(const Model& model, const Attachment& attachment, double 
 
 // Centre of a sphere collider at time t (m).
 Vec3 sphere_center(const Model& model, const SphereCollider& sphere, double t);
+
+// Translation of a mesh collider at time t (m): its motion's offset, 0 for a static mesh.
+Vec3 mesh_offset(const Model& model, const MeshCollider& mesh, double t);
 
 // Unit "up" vector: -gravity / |gravity|, or +y when there is no gravity.
 Vec3 up_direction(const Model& model);

@@ -198,6 +198,14 @@ std::vector<ModelProblem> check_model(const Model& model, const std::vector<int>
     check_coefficients(out, name, sp.restitution, sp.friction);
     check_motion_index(out, name, sp.motion, model);
   }
+  for (size_t k = 0; k < model.meshes.size(); ++k) {
+    const MeshCollider& mc = model.meshes[k];
+    const std::string name = "mesh " + std::to_string(k) + " ('" + mc.file + "')";
+    if (mc.triangles.empty()) out.add(name + ": has no triangles");
+    if (!mc.vertices.allFinite()) out.add(name + ": a vertex is not finite");
+    check_coefficients(out, name, mc.restitution, mc.friction);
+    check_motion_index(out, name, mc.motion, model);
+  }
   check_coefficients(out, "particle contact", model.particle_restitution, model.particle_friction);
   return out.take();
 }

@@ -103,7 +103,7 @@ RunPlan plan_run(const Model& model, const SolverOptions& solver, const config::
   plan.contact_pairs = overlapping_pairs(model);
   const double n = model.particle_count();
   const double m = static_cast<double>(model.constraints.size());
-  const double contacts = static_cast<double>(plan.contact_pairs) + n * static_cast<double>(model.planes.size() + model.spheres.size());
+  const double contacts = static_cast<double>(plan.contact_pairs) + n * static_cast<double>(model.planes.size() + model.spheres.size() + model.meshes.size());
   const double steps = static_cast<double>(plan.steps);
   size_t columns = 0;
   for (const SeriesSpec& s : series_table()) columns += static_cast<size_t>(s.width);

@@ -134,6 +134,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   bool energy_sources = relax_frames > 0;
   for (const Attachment& a : model.attachments) energy_sources = energy_sources || a.motion >= 0;
   for (const SphereCollider& sp : model.spheres) energy_sources = energy_sources || sp.motion >= 0;
+  for (const MeshCollider& mc : model.meshes) energy_sources = energy_sources || mc.motion >= 0;
   HealthMonitor health(model, state, sample, outcome.steps_planned, energy_sources);
   // Every way out records the warnings seen so far.
   auto record_warnings = [&] {

@@ -77,6 +77,10 @@ Tunnelled tunnelled_particles(const Model& model, const Points& x_prev, const Po
       }
       if (beyond >= 0.0) deepest = std::max(deepest, beyond);
     }
+    for (const MeshCollider& mesh : model.meshes) {
+      const double beyond = -mesh_distance(mesh, p - mesh_offset(model, mesh, t)).distance - r;
+      if (beyond >= 0.0) deepest = std::max(deepest, beyond);
+    }
     if (deepest >= 0.0) {
       ++out.count;
       out.depth = std::max(out.depth, deepest);

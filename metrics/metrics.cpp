@@ -233,6 +233,13 @@ SunkParticles sunk_particles(const Model& model, const State& state) {
         deepest = std::max(deepest, depth);
       }
     }
+    for (const MeshCollider& mesh : model.meshes) {
+      const double depth = -mesh_distance(mesh, x - mesh_offset(model, mesh, state.time)).distance;
+      if (depth > 0.0) {
+        sunk = true;
+        deepest = std::max(deepest, depth);
+      }
+    }
     if (sunk) ++out.count;
     if (!std::isnan(out.depth)) out.depth = std::max(out.depth, deepest);
   }

@@ -125,6 +125,7 @@ double height_min(const Model& model, const State& state);
 //   sphere outside: |x - c(t)| < R                                   depth R - |x - c(t)|
 //   sphere inside:  |x - c(t)| > R                                   depth |x - c(t)| - R
 //   bowl:           as inside, only where (x - c(t)) . up < 0 (core/contacts.hpp)
+//   mesh:           -s(x - offset(t)), s the mesh's signed distance (core/mesh_collider.hpp)
 // count: particles sunk into at least one collider; depth: the largest depth over particles and
 // colliders (m, 0 when none). A particle whose position is not finite is not counted, and makes
 // depth NaN.

@@ -94,6 +94,16 @@ Gap gap(const Model& model, const Contact& c, const Points& x, double t) {
       out.hess.topLeftCorner<3, 3>() = H;
       break;
     }
+    case ContactKind::Mesh: {
+      // The unsigned distance to the mesh (IPC's): every accepted state keeps it above the
+      // radius, so the particle never changes sides and the signed distance is the same there.
+      const MeshCollider& m = model.meshes[static_cast<size_t>(c.b)];
+      const MeshDistance md = mesh_distance(m, xa - mesh_offset(model, m, t));
+      out.d = md.unsigned_distance - ra;
+      out.grad.head<3>() = md.direction;
+      out.hess.topLeftCorner<3, 3>() = md.hessian;
+      break;
+    }
     case ContactKind::Particle: {
       const Vec3 xb = x.row(c.b).transpose();
       const double rb = model.radius[static_cast<size_t>(c.b)];
@@ -111,6 +121,59 @@ Gap gap(const Model& model, const Contact& c, const Points& x, double t) {
       out.hess.bottomRightCorner<3, 3>() = H;
       break;
     }
+  }
+  return out;
+}
+
+std::vector<Gap> barrier_terms(const Model& model, const Contact& c, const Points& x, double t,
+                               double d_hat) {
+  if (c.kind != ContactKind::Mesh) return {gap(model, c, x, t)};
+  std::vector<Gap> out;
+  const MeshCollider& m = model.meshes[static_cast<size_t>(c.b)];
+  const Vec3 p = x.row(c.a).transpose() - mesh_offset(model, m, t);
+  const double r = model.radius[static_cast<size_t>(c.a)];
+  TriangleBvh::Box box;
+  box.grow(p);
+  box.lo.array() -= r + d_hat;
+  box.hi.array() += r + d_hat;
+  std::vector<int> tris;
+  m.bvh.overlapping(box, [&](int k) { tris.push_back(k); });
+  std::sort(tris.begin(), tris.end());
+  for (int k : tris) {
+    const auto& tri = m.triangles[static_cast<size_t>(k)];
+    Vec3 bary;
+    const Vec3 a = m.vertices.row(tri[0]).transpose(), b = m.vertices.row(tri[1]).transpose(),
+               cc = m.vertices.row(tri[2]).transpose();
+    const Vec3 q = closest_point_on_triangle(p, a, b, cc, &bary);
+    const Vec3 u = p - q;
+    const double dist = u.norm();
+    if (!(dist > 0.0)) {  // on the triangle: the barrier is infinite there
+      Gap g;
+      g.d = -r;
+      out.push_back(g);
+      continue;
+    }
+    if (!(dist - r < d_hat)) continue;
+    Gap g;
+    g.d = dist - r;
+    const Vec3 dir = u / dist;
+    g.grad.head<3>() = dir;
+    int nonzero = 0, zero = 0;  // the closest feature: the regions give exact zeros
+    for (int i = 0; i < 3; ++i) {
+      if (bary[i] != 0.0) ++nonzero;
+      else zero = i;
+    }
+    if (nonzero == 1) {
+      g.hess.topLeftCorner<3, 3>() = (Mat3::Identity() - dir * dir.transpose()) / dist;
+    } else if (nonzero == 2) {
+      const int e0 = (zero + 1) % 3, e1 = (zero + 2) % 3;
+      const Vec3 te = (m.vertices.row(tri[static_cast<size_t>(e1)]) - m.vertices.row(tri[static_cast<size_t>(e0)]))
+                          .transpose()
+                          .normalized();
+      g.hess.topLeftCorner<3, 3>() =
+          (Mat3::Identity() - te * te.transpose() - dir * dir.transpose()) / dist;
+    }
+    out.push_back(g);
   }
   return out;
 }
@@ -166,6 +229,86 @@ double radial_crossing(const Vec3& p, const Vec3& q, double target, bool from_ou
   return s >= 0.0 ? s : kInf;
 }
 
+// The distance from the point y0 + s dy to triangle t of the mesh: convex in s.
+double triangle_distance(const MeshCollider& m, int t, const Vec3& y0, const Vec3& dy, double s) {
+  const auto& tri = m.triangles[static_cast<size_t>(t)];
+  const Vec3 p = y0 + s * dy;
+  const Vec3 q = closest_point_on_triangle(p, m.vertices.row(tri[0]).transpose(),
+                                           m.vertices.row(tri[1]).transpose(),
+                                           m.vertices.row(tri[2]).transpose());
+  return (p - q).norm();
+}
+
+// The largest s in [0, limit] such that the distance from y0 + s' dy to triangle t stays above
+// `target` for every s' in [0, s] (the distance at s = 0 is above it). The distance is convex in s
+// (a point moving on a line, a convex set): its minimum on [0, limit] by golden-section search;
+// when that minimum is below target, the crossing on the decreasing side by bisection, whose
+// lower end (still above target) is returned. Both to 1e-12 of limit: the bound keeps the gap
+// above target up to that fraction of the step, a small part of the 10 % it keeps.
+double triangle_crossing(const MeshCollider& m, int t, const Vec3& y0, const Vec3& dy,
+                         double target, double limit) {
+  if (triangle_distance(m, t, y0, dy, limit) > target) {
+    // The minimum may still lie inside; golden-section search for it.
+    double lo = 0.0, hi = limit;
+    const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+    double a = hi - phi * (hi - lo), b = lo + phi * (hi - lo);
+    double fa = triangle_distance(m, t, y0, dy, a), fb = triangle_distance(m, t, y0, dy, b);
+    while (hi - lo > 1e-12 * limit) {
+      if (fa <= target || fb <= target) break;
+      if (fa < fb) {
+        hi = b;
+        b = a;
+        fb = fa;
+        a = hi - phi * (hi - lo);
+        fa = triangle_distance(m, t, y0, dy, a);
+      } else {
+        lo = a;
+        a = b;
+        fa = fb;
+        b = lo + phi * (hi - lo);
+        fb = triangle_distance(m, t, y0, dy, b);
+      }
+    }
+    if (fa > target && fb > target) return limit;
+    limit = fa <= target ? a : b;
+  }
+  // f(0) > target >= f(limit): bisection keeps f(lo) > target >= f(hi).
+  double lo = 0.0, hi = limit;
+  while (hi - lo > 1e-12 * std::max(limit, 1e-300)) {
+    const double mid = 0.5 * (lo + hi);
+    if (triangle_distance(m, t, y0, dy, mid) > target) lo = mid;
+    else hi = mid;
+  }
+  return lo;
+}
+
+// The step bound of particle path a0 -> a0 + da (radius r) against a mesh moving from offset o0
+// to o1: in the mesh's frame the point moves on the straight path y0 + s dy.
+double mesh_step_bound(const Model& model, const MeshCollider& m, const Vec3& a0, const Vec3& da,
+                       double r, double t0, double t1, double keep, double alpha) {
+  const Vec3 o0 = mesh_offset(model, m, t0), o1 = mesh_offset(model, m, t1);
+  const Vec3 y0 = a0 - o0, dy = da - (o1 - o0);
+  // The distance falls by at most |dy| over the path: from farther than r + |dy| / (1 - keep)
+  // the gap keeps its fraction `keep` whatever the path does.
+  const double reach = r + dy.norm() / (1.0 - keep);
+  if (m.bvh.bounds().squared_distance(y0) > reach * reach) return alpha;
+  const MeshDistance md = mesh_distance(m, y0, reach);
+  if (md.triangle < 0) return alpha;
+  const double d0 = md.unsigned_distance - r;
+  if (d0 <= 0.0) return alpha;
+  const double target = r + keep * d0;
+  // Only triangles within target of some point of the path can be reached.
+  TriangleBvh::Box path;
+  path.grow(y0);
+  path.grow(Vec3(y0 + dy));
+  path.lo.array() -= target;
+  path.hi.array() += target;
+  m.bvh.overlapping(path, [&](int t) {
+    alpha = std::min(alpha, triangle_crossing(m, t, y0, dy, target, alpha));
+  });
+  return alpha;
+}
+
 }  // namespace
 
 double step_bound(const Model& model, const Points& x0, const Points& x1, double t0, double t1,
@@ -202,6 +345,14 @@ double step_bound(const Model& model, const Points& x0, const Points& x1, double
       }
     }
   }
+  for (const MeshCollider& m : model.meshes)
+    for (int i = 0; i < n; ++i) {
+      if (model.inv_mass[static_cast<size_t>(i)] <= 0.0) continue;
+      const Vec3 a0 = x0.row(i).transpose();
+      const Vec3 da = x1.row(i).transpose() - a0;
+      alpha = mesh_step_bound(model, m, a0, da, model.radius[static_cast<size_t>(i)], t0, t1,
+                              keep, alpha);
+    }
   for (const Contact& c : pair_candidates) {
     if (c.kind != ContactKind::Particle) continue;
     const Vec3 p = (x0.row(c.a) - x0.row(c.b)).transpose();

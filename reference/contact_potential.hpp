@@ -60,6 +60,16 @@ struct Gap {
 // the block pattern [[H, -H], [-H, H]] for a particle pair.
 Gap gap(const Model& model, const Contact& contact, const Points& x, double t);
 
+// The barrier's terms of a contact: its gap, except for a mesh collider, whose barrier is the sum
+// over its triangles within d_hat of the particle of b(distance to the triangle - radius) (IPC's
+// point-triangle pairs: smooth where the nearest triangle changes, as in a concave crease, where
+// the distance to the mesh, a minimum over triangles, has a kink; a particle nearest to an edge
+// or vertex shared by k triangles meets k equal terms there, as IPC's unmerged pairs do). Each
+// term's Hessian is that of the distance to its triangle (0 in the face, the edge's or vertex's
+// otherwise).
+std::vector<Gap> barrier_terms(const Model& model, const Contact& contact, const Points& x,
+                               double t, double d_hat);
+
 // A lagged friction contact (see above): its particles, normal, lagged normal force, coefficient
 // and the collider's displacement over the step (a moving sphere's surface point, else 0).
 struct FrictionContact {

@@ -223,6 +223,15 @@ Mat12 GlobalProblem::row_hessian(int r, const Points& x) const {
       out.block<3, 3>(0, 0) = (s.side == SphereSide::Outside ? 1.0 : -1.0) * H.block<3, 3>(0, 0);
       return out;
     }
+    case ContactKind::Mesh: {
+      // C = s(x - offset) - r: the signed distance's Hessian, the sign times the unsigned one's.
+      const MeshCollider& m = model_->meshes[static_cast<size_t>(contact.b)];
+      const MeshDistance md =
+          mesh_distance(m, x.row(contact.a).transpose() - mesh_offset(*model_, m, t_end_));
+      Mat12 out = Mat12::Zero();
+      out.block<3, 3>(0, 0) = (md.distance < 0.0 ? -1.0 : 1.0) * md.hessian;
+      return out;
+    }
   }
   return Mat12::Zero();
 }

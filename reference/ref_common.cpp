@@ -40,6 +40,7 @@ void check_reference_model(const std::string& solver, const Model& model,
     std::vector<std::string> what;
     if (!model.planes.empty()) what.push_back(std::to_string(model.planes.size()) + " plane collider(s)");
     if (!model.spheres.empty()) what.push_back(std::to_string(model.spheres.size()) + " sphere collider(s)");
+    if (!model.meshes.empty()) what.push_back(std::to_string(model.meshes.size()) + " mesh collider(s)");
     if (model.particle_contact) what.push_back("particle contact");
     if (!what.empty()) {
       std::ostringstream os;
@@ -56,7 +57,8 @@ void check_reference_model(const std::string& solver, const Model& model,
 }
 
 bool has_contact(const Model& model) {
-  return !model.planes.empty() || !model.spheres.empty() || model.particle_contact;
+  return !model.planes.empty() || !model.spheres.empty() || !model.meshes.empty() ||
+         model.particle_contact;
 }
 
 LinearSolverKind linear_solver_kind(const SolverOptions& options) {

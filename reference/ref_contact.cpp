@@ -105,10 +105,9 @@ class RefBeContact final : public Solver {
     double e = 0.5 * (q - q_hat_).cwiseAbs2().dot(m);
     double U = energy().energy(x);
     double B = 0.0;
-    for (const Contact& c : contacts) {
-      const double d = barrier::gap(model, c, x, t1).d;
-      B += kappa_ * barrier::value(d, d_hat_);
-    }
+    for (const Contact& c : contacts)
+      for (const barrier::Gap& g : barrier::barrier_terms(model, c, x, t1, d_hat_))
+        B += kappa_ * barrier::value(g.d, d_hat_);
     double D = 0.0;
     for (const barrier::FrictionContact& f : friction_)
       D += barrier::friction_value(f, barrier::tangential_displacement(f, x, x0_), eps_v_ * h_);
@@ -147,8 +146,8 @@ class RefBeContact final : public Solver {
         if (hvalues_[static_cast<size_t>(k)] != 0.0)
           trip_.emplace_back(static_cast<int>(P.row[static_cast<size_t>(k)]), c, h2 * hvalues_[static_cast<size_t>(k)]);
     }
-    for (const Contact& c : contacts) {
-      const barrier::Gap gp = barrier::gap(model, c, x, t1);
+    for (const Contact& c : contacts)
+    for (const barrier::Gap& gp : barrier::barrier_terms(model, c, x, t1, d_hat_)) {
       const double b1 = barrier::first(gp.d, d_hat_), b2 = barrier::second(gp.d, d_hat_);
       const Eigen::Matrix<double, 6, 1> gg = h2 * kappa_ * b1 * gp.grad;
       add_gradient(grad, c.a, gg.head<3>());
@@ -207,6 +206,10 @@ class RefBeContact final : public Solver {
         const SphereCollider& s = model.spheres[static_cast<size_t>(c.b)];
         f.collider_motion = sphere_center(model, s, t1) - sphere_center(model, s, t0);
       }
+      if (c.kind == ContactKind::Mesh) {
+        const MeshCollider& m = model.meshes[static_cast<size_t>(c.b)];
+        f.collider_motion = mesh_offset(model, m, t1) - mesh_offset(model, m, t0);
+      }
       friction_.push_back(f);
     }
   }
@@ -244,6 +247,23 @@ class RefBeContact final : public Solver {
         const double R = s.side == SphereSide::Outside ? s.radius + r : s.radius - r;
         const double g0 = sign * ((x - c0).norm() - R), g1 = sign * ((x - c1).norm() - R);
         if (g1 < g0 && g1 < d_hat_) q.segment<3>(3 * static_cast<Eigen::Index>(k)) += shift;
+      }
+    }
+    // Moving meshes likewise (a translation keeps the gap to the mesh as it was).
+    for (const MeshCollider& m : model.meshes) {
+      if (m.motion < 0) continue;
+      const Vec3 o0 = mesh_offset(model, m, t0), o1 = mesh_offset(model, m, t1);
+      const Vec3 shift = o1 - o0;
+      if (shift.squaredNorm() == 0.0) continue;
+      for (size_t k = 0; k < dyn.size(); ++k) {
+        const Vec3 x = q.segment<3>(3 * static_cast<Eigen::Index>(k));
+        const double r = model.radius[static_cast<size_t>(dyn[k])];
+        const double reach = r + d_hat_ + shift.norm();
+        const MeshDistance m1 = mesh_distance(m, x - o1, reach);
+        if (m1.triangle < 0 || !(m1.unsigned_distance - r < d_hat_)) continue;
+        const MeshDistance m0 = mesh_distance(m, x - o0);
+        if (m1.unsigned_distance < m0.unsigned_distance)
+          q.segment<3>(3 * static_cast<Eigen::Index>(k)) += shift;
       }
     }
   }

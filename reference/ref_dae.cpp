@@ -59,6 +59,9 @@ void check_model(const SolverOptions& options, const Model& model) {
     if (!model.spheres.empty())
       throw std::invalid_argument(options.name + ": the model has sphere collider 0 (of " +
                                   std::to_string(model.spheres.size()) + ")" + hint);
+    if (!model.meshes.empty())
+      throw std::invalid_argument(options.name + ": the model has mesh collider 0 (of " +
+                                  std::to_string(model.meshes.size()) + ")" + hint);
     if (model.particle_contact)
       throw std::invalid_argument(options.name + ": the model has particle contact on" + hint);
   }

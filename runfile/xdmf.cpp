@@ -90,6 +90,14 @@ Mesh collider_mesh(const Model& model, double t, const Vec3& around, double half
   const Vec3 up = up_direction(model);
   for (const SphereCollider& s : model.spheres)
     add(sphere_mesh(sphere_center(model, s, t), s.radius, s.side == SphereSide::Bowl, up));
+  for (const MeshCollider& mc : model.meshes) {
+    Mesh m;
+    const Vec3 offset = mesh_offset(model, mc, t);
+    for (Eigen::Index i = 0; i < mc.vertices.rows(); ++i)
+      m.points.push_back(Vec3(mc.vertices.row(i).transpose()) + offset);
+    for (const auto& tri : mc.triangles) m.triangles.push_back({tri[0], tri[1], tri[2]});
+    add(m);
+  }
   return all;
 }
 
@@ -317,6 +325,7 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   const double half = std::max(2.0 * extent, 1.0);
   bool moving = false;
   for (const SphereCollider& s : model.spheres) moving = moving || s.motion >= 0;
+  for (const MeshCollider& mc : model.meshes) moving = moving || mc.motion >= 0;
   const hsize_t collider_frames = moving ? F : (F > 0 ? 1 : 0);
   std::vector<double> collider_points;
   std::vector<int> collider_tris;

@@ -48,6 +48,8 @@ struct ContactItem {
                                  // R - r_a (inside); Particle: r_a + r_b; m
   T sign = 1;                    // Sphere: +1 outside, -1 inside (C = sign (|x - c| - r))
   bool valid = true;             // Plane: |n| > 0
+  const MeshCollider* mesh = nullptr;  // Mesh: the collider (g: its offset at t_end; r: r_a);
+                                       // C and grad from its signed distance at every projection
 };
 
 template <class T>
@@ -476,6 +478,13 @@ class Program final : public CompiledProjection {
         c.wb = static_cast<T>(model.inv_mass[static_cast<size_t>(contact.b)]);
         c.r = static_cast<T>(ra + model.radius[static_cast<size_t>(contact.b)]);
         break;
+      case ContactKind::Mesh: {
+        const MeshCollider& m = model.meshes[static_cast<size_t>(contact.b)];
+        c.mesh = &m;
+        c.g = v3t(mesh_offset(model, m, t));
+        c.r = static_cast<T>(ra);
+        break;
+      }
     }
     return c;
   }
@@ -546,6 +555,17 @@ class Program final : public CompiledProjection {
           ga = (T(1) / dist) * d;
           gb = -ga;
         }
+        break;
+      }
+      case ContactKind::Mesh: {
+        // The signed distance in double (the BVH's precision), its value and gradient in T.
+        const V3<T> d = xa - c.g;
+        const MeshDistance md = mesh_distance(
+            *c.mesh, Vec3(static_cast<double>(d.x), static_cast<double>(d.y), static_cast<double>(d.z)));
+        valid = md.triangle >= 0;
+        C = static_cast<T>(md.distance) - c.r;
+        ga = V3<T>{static_cast<T>(md.normal.x()), static_cast<T>(md.normal.y()),
+                   static_cast<T>(md.normal.z())};
         break;
       }
     }

@@ -383,6 +383,10 @@ class PbdSeedSolver final : public Solver {
       for (int a = 0; a < particles_count_; ++a)
         if (model.inv_mass[static_cast<size_t>(a)] > 0.0)
           candidates_.push_back({ContactKind::Sphere, a, si});
+    for (int mi = 0; mi < static_cast<int>(model.meshes.size()); ++mi)  // N2: as the spheres
+      for (int a = 0; a < particles_count_; ++a)
+        if (model.inv_mass[static_cast<size_t>(a)] > 0.0)
+          candidates_.push_back({ContactKind::Mesh, a, mi});
     if (model.particle_contact) {
       // N2: particle pairs are found once per step at the predicted positions (no listing;
       // testing every pair in every iteration is not an option).
@@ -586,6 +590,20 @@ class PbdSeedSolver final : public Solver {
         dead_velocity_write(p, normal, restitution);
         out.dx[0] = -C * normal;
         record_normal_push(model, k, out, normal.template cast<double>());
+        return true;
+      }
+      case ContactKind::Mesh: {  // N2: as a sphere, along the mesh's signed-distance gradient
+        const MeshCollider& mesh = model.meshes[static_cast<size_t>(con.b)];
+        const Vec3 x = p.pos.template cast<double>() - mesh_offset(model, mesh, t_end);
+        const MeshDistance md = mesh_distance(mesh, x);
+        if (md.triangle < 0) return skip();
+        const Real C = static_cast<Real>(md.distance) - p.radius;
+        if (!(C < 0)) return false;
+        contact_active_[k] = 1;
+        const V3<Real> normal = md.normal.cast<Real>();
+        dead_velocity_write(p, normal, restitution);
+        out.dx[0] = -C * normal;
+        record_normal_push(model, k, out, md.normal);
         return true;
       }
       case ContactKind::Particle: {  // N2

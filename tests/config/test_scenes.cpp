@@ -45,6 +45,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"cantilever_beam", 208},  // 13 x 4 x 4 vertices
     {"cantilever_fem", 99},    // 11 x 3 x 3 vertices
     {"cantilever_plane", 105},  // 21 x 5 vertices
+    {"cape_on_character", 384},   // 16 x 24 cloth; the body is a mesh collider
     {"cloth_on_character", 768},  // 24 x 32
     {"cloth_over_block", 919},    // 24 x 24 cloth and a [[body]] of 7 x 7 x 7 vertices
     {"failures/cloth_on_ground", 256},         // 16 x 16
@@ -675,6 +676,62 @@ TEST(Scenes, Colliders) {
   EXPECT_EQ(s.model.motions[0].frequency, 2.0);
   EXPECT_EQ(s.model.spheres[1].motion, -1);
   EXPECT_EQ(s.model.spheres[1].side, SphereSide::Outside);
+}
+
+TEST(Scenes, MeshColliderIsReadPlacedAndRefusedNamingTheLine) {
+  // A unit square (a quad face, fan-triangulated into two triangles) scaled by 2, turned -90
+  // degrees about x (the plane z = 0 becomes y = 0, its normal +z becomes +y) and lifted by 0.5;
+  // a linear motion.
+  testing::TempDir dir("mesh_collider");
+  dir.write("square.obj", "# a square\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+  const std::string scenario =
+      "[scene]\nkind = \"particle\"\n"
+      "[[collider]]\ntype = \"mesh\"\nfile = \"square.obj\"\nscale = 2.0\n"
+      "rotation = [-90.0, 0.0, 0.0]\nposition = [0.0, 0.5, 0.0]\nfriction = 0.4\n"
+      "motion = \"linear\"\nmotion_velocity = [0.0, 0.1, 0.0]\n";
+  const Scene s = build_scene(load(dir.write("m.toml", scenario).string()));
+  ASSERT_EQ(s.model.meshes.size(), 1u);
+  const MeshCollider& m = s.model.meshes[0];
+  EXPECT_EQ(m.triangles.size(), 2u);
+  EXPECT_EQ(m.file, "square.obj");
+  EXPECT_EQ(m.friction, 0.4);
+  EXPECT_EQ(m.motion, 0);
+  EXPECT_NEAR(m.vertices.col(1).maxCoeff(), 0.5, kTol);  // y = 0.5 everywhere
+  EXPECT_NEAR(m.vertices.col(1).minCoeff(), 0.5, kTol);
+  EXPECT_NEAR(m.vertices(2, 0), 2.0, kTol);
+  EXPECT_NEAR(m.vertices(2, 2), -2.0, kTol);  // (1, 1, 0) -> (2, 2, 0) -> (2, 0, -2) + lift
+  EXPECT_NEAR(m.face_normal[0].y(), 1.0, kTol);
+  EXPECT_FALSE(m.closed);
+
+  // Bad meshes: the error names the scenario's line of the file key, the key, and the OBJ's
+  // line where the problem is.
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "bad.obj:4: vertex index 7 is out of range"},
+      {"v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", "bad.obj:3: coordinate 'nan' is not finite"},
+      {"v 0 0 0\nv 1 0 0\nv 2 0 0\n\nf 1 2 3\n", "bad.obj:5: triangle 0 is degenerate"},
+      {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", "bad.obj:4: face: expected at least 3 vertices"},
+      {"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "the mesh has no triangles"}};
+  for (const auto& [obj, expected] : bad) {
+    dir.write("bad.obj", obj);
+    const std::string text = "[scene]\nkind = \"particle\"\n[[collider]]\ntype = \"mesh\"\nfile = \"bad.obj\"\n";
+    try {
+      (void)build_scene(load(dir.write("b.toml", text).string()));
+      ADD_FAILURE() << "accepted: " << obj;
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.key(), "collider.0.file");
+      EXPECT_EQ(e.source().line, 5);
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  }
+  // A missing file is refused when the scenario loads.
+  const std::string missing = "[scene]\nkind = \"particle\"\n[[collider]]\ntype = \"mesh\"\nfile = \"nope.obj\"\n";
+  try {
+    (void)load(dir.write("c.toml", missing).string());
+    ADD_FAILURE() << "a missing mesh accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "collider.0.file");
+    EXPECT_EQ(e.source().line, 5);
+  }
 }
 
 TEST(Scenes, MeshScaleTranslateAndPins) {

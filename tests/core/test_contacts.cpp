@@ -8,7 +8,9 @@
 #include <tuple>
 #include <utility>
 
+#include "core/generators.hpp"
 #include "tests/core/test_support.hpp"
+#include "tests/mesh_fixtures.hpp"
 
 namespace pbdbench {
 namespace {
@@ -115,6 +117,63 @@ TEST(Contacts, SphereGradientsMatchFiniteDifferences) {
                   [&](Model& m, Random& r) { sphere_setup(m, r, SphereSide::Bowl, moving); },
                   {ContactKind::Sphere, 0, 0}, 1, 0.37, 24);
   }
+}
+
+void mesh_setup(Model& m, Random& rng, bool moving) {
+  // An icosphere (closed: inside and outside) or a cube, at a random place and size.
+  const Vec3 c = rng.vec(-1, 1);
+  const double size = rng.uniform(0.3, 1.5);
+  const test::TriMesh t = rng.uniform() < 0.5 ? test::icosphere_mesh(1, size, c) : test::cube_mesh(size, c);
+  m.meshes.push_back(test::collider_of(t));
+  if (moving) {
+    Motion mo;
+    mo.kind = MotionKind::Circle;
+    mo.axis = rng.vec(-1, 1).normalized();
+    mo.radius = 0.4;
+    mo.frequency = 0.7;
+    m.motions.push_back(mo);
+    m.meshes.back().motion = 0;
+  }
+}
+
+TEST(Contacts, MeshGradientsMatchFiniteDifferences) {
+  for (bool moving : {false, true})
+    check_contact(moving ? "mesh (moving)" : "mesh",
+                  [&](Model& m, Random& r) { mesh_setup(m, r, moving); },
+                  {ContactKind::Mesh, 0, 0}, 1, 0.37, moving ? 26 : 25);
+}
+
+TEST(Contacts, MeshContactsAreFoundAsTheirDistanceSays) {
+  // Particles on a line through a cube of half-size 0.5: found when C < margin, with C the
+  // signed distance minus the radius; the mesh's contacts come after the spheres'.
+  Model m;
+  for (int i = 0; i < 21; ++i) add_particle(m, Vec3(-1.0 + 0.1 * i, 0.1, 0.05), 1.0, 0.05);
+  m.spheres.push_back(SphereCollider{Vec3(5.0, 0.0, 0.0), 0.1, SphereSide::Inside});
+  m.meshes.push_back(test::collider_of(test::cube_mesh(0.5)));
+  const double margin = 0.02;
+  const std::vector<Contact> found = find_contacts(m, m.rest_positions, 0.0, margin);
+  std::vector<int> mesh_particles;
+  bool after_spheres = true, seen_mesh = false;
+  for (const Contact& c : found) {
+    if (c.kind == ContactKind::Mesh) {
+      seen_mesh = true;
+      mesh_particles.push_back(c.a);
+    } else if (seen_mesh) {
+      after_spheres = false;
+    }
+  }
+  EXPECT_TRUE(after_spheres);
+  std::vector<int> expected;
+  for (int i = 0; i < 21; ++i) {
+    const double x = -1.0 + 0.1 * i;
+    const double dist = std::abs(x) > 0.5 ? std::abs(x) - 0.5 : -std::min(0.5 - std::abs(x), 0.4);
+    if (dist - 0.05 < margin) expected.push_back(i);
+  }
+  EXPECT_EQ(mesh_particles, expected);
+  const ConstraintEval e = eval_contact(m, {ContactKind::Mesh, 14, 0}, m.rest_positions, 0.0);
+  EXPECT_NEAR(e.C, 0.4 - 0.5 - 0.05, 1e-12);  // x = 0.4: 0.1 inside the face x = 0.5
+  EXPECT_TRUE(test::near(e.grad[0], Vec3::UnitX(), test::kRoundoff));
+  EXPECT_STREQ(to_string(ContactKind::Mesh), "mesh");
 }
 
 TEST(Contacts, ParticlePairGradientMatchesFiniteDifferencesAndConservesMomentum) {

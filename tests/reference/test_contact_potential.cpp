@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "core/generators.hpp"
+#include "tests/mesh_fixtures.hpp"
 
 namespace pbdbench {
 namespace {
@@ -175,6 +176,90 @@ TEST(Barrier, StepBoundKeepsTheGapAndIsTight) {
     }
   }
   EXPECT_GT(bounded, 50);  // the trials exercise the bound
+}
+
+TEST(Barrier, MeshGapDerivativesMatchCentralDifferences) {
+  // The unsigned distance to a coarse icosphere minus the radius, from points around it (faces,
+  // edges and vertices nearest); where a difference step changes the nearest feature the
+  // Hessian is not compared (it jumps there), the gradient always (the distance is C1 outside).
+  Model m;
+  add_particle(m, Vec3::Zero(), 1.0, 0.02);
+  m.meshes.push_back(test::collider_of(test::icosphere_mesh(1, 0.5)));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(-1, 1);
+  int hessians = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    Points x(1, 3);
+    x.row(0) = Vec3(U(rng), U(rng), U(rng)).normalized().transpose() * (0.55 + 0.3 * std::abs(U(rng)));
+    const Contact c{ContactKind::Mesh, 0, 0};
+    const Gap g = barrier::gap(m, c, x, 0.0);
+    EXPECT_NEAR(g.d, eval_contact(m, c, x, 0.0).C, 1e-15);  // outside: signed = unsigned
+    EXPECT_EQ(g.size, 3);
+    bool same = true;
+    const MeshDistance d0 = mesh_distance(m.meshes[0], x.row(0).transpose());
+    for (int k = 0; k < 3; ++k) {
+      const double s = 1e-6;
+      Points xp = x, xm = x;
+      xp(0, k) += s;
+      xm(0, k) -= s;
+      const Gap gp = barrier::gap(m, c, xp, 0.0), gm = barrier::gap(m, c, xm, 0.0);
+      EXPECT_NEAR(g.grad[k], (gp.d - gm.d) / (2 * s), 1e-8) << trial;
+      for (const Points* y : {&xp, &xm}) {
+        const MeshDistance dy = mesh_distance(m.meshes[0], y->row(0).transpose());
+        same = same && dy.triangle == d0.triangle && dy.features == d0.features;
+      }
+      if (!same) continue;
+      for (int j = 0; j < 3; ++j)
+        EXPECT_NEAR(g.hess(j, k), (gp.grad[j] - gm.grad[j]) / (2 * s), 1e-5) << trial;
+    }
+    hessians += same ? 1 : 0;
+  }
+  EXPECT_GT(hessians, 250);
+}
+
+TEST(Barrier, StepBoundKeepsTheMeshGapAndIsTight) {
+  // Random straight paths of a particle near a coarse icosphere, static and moving (a linear
+  // motion, taken linearly between t0 and t1): along [0, alpha] the gap, sampled densely, never
+  // drops below 10 % of its start, and where the bound cuts the step the gap at alpha is 10 %
+  // (to the search's 1e-12 of the step, times the path's length over the gap).
+  for (bool moving : {false, true}) {
+    Model m;
+    add_particle(m, Vec3::Zero(), 1.0, 0.02);
+    m.meshes.push_back(test::collider_of(test::icosphere_mesh(1, 0.3)));
+    if (moving) {
+      Motion mo;
+      mo.kind = MotionKind::Linear;
+      mo.velocity = Vec3(0.2, -0.1, 0.3);
+      m.motions.push_back(mo);
+      m.meshes[0].motion = 0;
+    }
+    const double t0 = 0.0, t1 = 0.5;
+    auto gap_at = [&](const Points& x0, const Points& x1, double s) {
+      Points xs = x0 + s * (x1 - x0);
+      return barrier::gap(m, {ContactKind::Mesh, 0, 0}, xs, t0 + s * (t1 - t0)).d;
+    };
+    std::mt19937 rng(moving ? 5 : 4);
+    std::uniform_real_distribution<double> U(-1, 1);
+    int bounded = 0;
+    for (int trial = 0; trial < 150; ++trial) {
+      Points x0(1, 3), x1(1, 3);
+      x0.row(0) = Vec3(U(rng), U(rng), U(rng)).normalized().transpose() * (0.34 + 0.1 * std::abs(U(rng)));
+      x1.row(0) = x0.row(0) + 0.5 * Vec3(U(rng), U(rng), U(rng)).transpose();
+      const double d0 = gap_at(x0, x1, 0.0);
+      ASSERT_GT(d0, 0.0);
+      const double alpha = barrier::step_bound(m, x0, x1, t0, t1, {}, 0.9);
+      ASSERT_GT(alpha, 0.0);
+      double worst = 1e300;
+      for (int k = 0; k <= 2000; ++k) worst = std::min(worst, gap_at(x0, x1, alpha * k / 2000.0) / d0);
+      EXPECT_GE(worst, 0.1 - 1e-9) << trial;
+      if (alpha < 1.0) {
+        ++bounded;
+        const double len = (x1 - x0).norm() + (moving ? 0.5 * Vec3(0.2, -0.1, 0.3).norm() : 0.0);
+        EXPECT_NEAR(gap_at(x0, x1, alpha) / d0, 0.1, 1e-9 * (1.0 + len / d0)) << trial;
+      }
+    }
+    EXPECT_GT(bounded, 20) << moving;  // the trials exercise the bound
+  }
 }
 
 }  // namespace
