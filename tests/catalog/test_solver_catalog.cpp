@@ -22,7 +22,7 @@ std::vector<SolverEntry> pbd_family() {
   return out;
 }
 
-TEST(Catalog, NamesAreUniqueAndEveryRowIsWhole) {
+TEST(SolverCatalog, NamesAreUniqueAndEveryRowIsWhole) {
   const auto& all = solver_catalog();
   ASSERT_EQ(all.size(), 12u);
   for (size_t i = 0; i < all.size(); ++i) {
@@ -37,7 +37,7 @@ TEST(Catalog, NamesAreUniqueAndEveryRowIsWhole) {
 // The capabilities say what each factory accepts: a solver that claims a capability builds on a
 // model that needs it, one that does not refuses it (std::invalid_argument), so that the table
 // cannot drift from the solvers.
-TEST(Catalog, CapabilitiesAgreeWithTheFactories) {
+TEST(SolverCatalog, CapabilitiesAgreeWithTheFactories) {
   auto scene = [](const std::string& name, const std::vector<std::string>& sets) {
     std::vector<config::Override> o;
     for (const std::string& s : sets) o.push_back(config::parse_override(s));

@@ -19,12 +19,12 @@
 #include <cstdio>
 #include <string>
 
+#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "core/contacts.hpp"
 #include "core/generators.hpp"
 #include "core/mesh_collider.hpp"
 #include "reference/contact_potential.hpp"
-#include "catalog/solver_catalog.hpp"
 #include "solver_api/solver.hpp"
 #include "tests/mesh_fixtures.hpp"
 
