@@ -233,6 +233,12 @@ struct GlobalNewton::Impl {
     const SerialOpenMp serial;
     if (!analysed) {
       cholmod.setShift(0.0);
+      // The fill-reducing ordering: CHOLMOD tries AMD and METIS and keeps the one with the fewer
+      // nonzeros in L (its default tries METIS only when AMD's fill is poor, and keeps AMD on the
+      // 64 x 64 cloth: 6.7e8 flops a factorisation against METIS's 4.5e8). Both are deterministic.
+      cholmod.cholmod().nmethods = 2;
+      cholmod.cholmod().method[0].ordering = CHOLMOD_AMD;
+      cholmod.cholmod().method[1].ordering = CHOLMOD_METIS;
       cholmod.analyzePattern(A);
       analysed = true;
     }
