@@ -10,7 +10,9 @@
 // Also global-cholmod: one step of cantilever_beam and hanging_cloth (setup not timed), and the
 // projection of its Hessian blocks onto the positive semi-definite cone (reference/
 // global_newton.cpp) in the fixed-size eigen-solve it uses against the heap-allocating dynamic one
-// it used before (written here), on the same random blocks, side by side (docs/performance.md):
+// it used before (written here), on the same random blocks, side by side (docs/performance.md);
+// global-cholmod's steady state (a step after a warm-up run), and the fast projections of
+// core/psd_projection.hpp beside the general 12 x 12 eigen-solve on the same blocks:
 //
 //   build/benchmarks/bench_reference --benchmark_filter='global|psd' --benchmark_repetitions=5
 #include <benchmark/benchmark.h>
@@ -18,6 +20,8 @@
 #include <fmt/format.h>
 
 #include <Eigen/Eigenvalues>
+#include <array>
+#include <utility>
 #include <fstream>
 #include <random>
 #include <string>
@@ -25,6 +29,9 @@
 
 #include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
+#include "core/constraint_functions.hpp"
+#include "core/psd_projection.hpp"
+#include "reference/energy.hpp"
 #include "runfile/build_info.hpp"
 #include "solver_api/solver.hpp"
 
@@ -108,6 +115,30 @@ void BM_GlobalStep(benchmark::State& bench, const char* scenario) {
   bench.counters["linear_seconds"] = linear * k;
 }
 
+// global-cholmod in the steady state: the solver built once and the scene run for `warmup`
+// steps (not timed; the cloth has left flat by then, so its bending blocks are not the flat ones),
+// then each timed iteration is the next step of that run.
+void BM_GlobalSteadyStep(benchmark::State& bench, const char* scenario, int warmup) {
+  config::Config cfg = config::load(scenario, {{"solver.name", "\"global-cholmod\""}});
+  const Scene scene = config::build_scene(cfg);
+  const double dt = config::run_options(cfg).dt;
+  auto s = make_solver(config::solver_options(cfg), scene.model);
+  State state = scene.initial;
+  for (int k = 0; k < warmup; ++k) s->step(scene.model, state, dt);
+  double linear = 0.0, newton = 0.0;
+  long steps = 0;
+  for (auto _ : bench) {
+    const StepReport r = s->step(scene.model, state, dt);
+    benchmark::DoNotOptimize(state.x.data());
+    linear += r.time_linear;
+    newton += static_cast<double>(r.newton_iterations);
+    ++steps;
+  }
+  const double k = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
+  bench.counters["newton_iterations"] = newton * k;
+  bench.counters["linear_seconds"] = linear * k;
+}
+
 // Random symmetric K x K blocks shaped as global-cholmod's: g g^T / eps - l H, H symmetric.
 template <int K>
 std::vector<Eigen::Matrix<double, K, K>> psd_blocks() {
@@ -152,6 +183,67 @@ void BM_Psd(benchmark::State& bench) {
                                                       benchmark::Counter::kIsRate);
 }
 
+// Translation-free 12 x 12 blocks (bending, FEM elements: zero on the translations), indefinite:
+// the general 12 x 12 eigen-solve against the 9 x 9 restriction (core/psd_projection.hpp).
+std::vector<Eigen::Matrix<double, 12, 12>> translation_free_blocks() {
+  std::vector<Eigen::Matrix<double, 12, 12>> out = psd_blocks<12>();
+  Eigen::Matrix<double, 12, 12> P = Eigen::Matrix<double, 12, 12>::Identity();
+  for (int v = 0; v < 4; ++v)
+    for (int w = 0; w < 4; ++w) P.block<3, 3>(3 * v, 3 * w) -= Eigen::Matrix3d::Identity() / 4.0;
+  for (auto& H : out) H = P * H * P;
+  return out;
+}
+
+template <bool Fast>
+void BM_PsdTranslationFree(benchmark::State& bench) {
+  const auto blocks = translation_free_blocks();
+  double sink = 0.0;
+  for (auto _ : bench)
+    for (auto H : blocks) {
+      if constexpr (Fast) psd::project_psd_translation_free(H);
+      else psd::project_psd<12>(H);
+      sink += H(0, 0);
+    }
+  benchmark::DoNotOptimize(sink);
+  bench.counters["blocks_per_s"] = benchmark::Counter(static_cast<double>(blocks.size()) * bench.iterations(),
+                                                      benchmark::Counter::kIsRate);
+}
+
+// The volume term of cantilever_beam's tets, stretched and compressed: its 12 x 12 Hessian
+// built and projected by the general eigen-solve, against the analytic eigensystem.
+template <bool Fast>
+void BM_PsdVolume(benchmark::State& bench) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-0.02, 0.02);
+  std::vector<std::array<Vec3, 4>> tets(512);
+  std::vector<double> rest(tets.size());
+  for (size_t t = 0; t < tets.size(); ++t) {
+    tets[t] = {Vec3(0, 0, 0), Vec3(0.1, 0, 0), Vec3(0, 0.1, 0), Vec3(0, 0, 0.1)};
+    for (Vec3& p : tets[t]) p += Vec3(u(rng), u(rng), u(rng));
+    rest[t] = 0.1 * 0.1 * 0.1 / 6.0;
+  }
+  const double alpha = 4e-11;
+  double sink = 0.0;
+  for (auto _ : bench)
+    for (size_t t = 0; t < tets.size(); ++t) {
+      const auto& x = tets[t];
+      Eigen::Matrix<double, 12, 12> H;
+      if constexpr (Fast) {
+        H = psd::volume_term_hessian_psd(x[0], x[1], x[2], x[3], rest[t], alpha);
+      } else {
+        const ConstraintEval e = eval_volume(x[0], x[1], x[2], x[3], rest[t]);
+        Eigen::Matrix<double, 12, 1> g;
+        for (int i = 0; i < 4; ++i) g.segment<3>(3 * i) = e.grad[static_cast<size_t>(i)];
+        H = (g * g.transpose() + e.C * volume_constraint_hessian(x[0], x[1], x[2], x[3])) / alpha;
+        psd::project_psd<12>(H);
+      }
+      sink += H(0, 0);
+    }
+  benchmark::DoNotOptimize(sink);
+  bench.counters["blocks_per_s"] = benchmark::Counter(static_cast<double>(tets.size()) * bench.iterations(),
+                                                      benchmark::Counter::kIsRate);
+}
+
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");
   for (std::string line; std::getline(f, line);)
@@ -174,6 +266,17 @@ int main(int argc, char** argv) {
     benchmark::RegisterBenchmark(fmt::format("global-cholmod/{}", scenario).c_str(), BM_GlobalStep, scenario)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
+  // Warm-up: 60 steps (1 s) of the beam; 20 (1/3 s) of the cloth, which has left flat by then
+  // and whose steps cost seconds each.
+  for (const auto& [scenario, warmup] : {std::pair{"cantilever_beam", 60}, std::pair{"hanging_cloth", 20}})
+    benchmark::RegisterBenchmark(fmt::format("global-cholmod-steady/{}", scenario).c_str(),
+                                 BM_GlobalSteadyStep, scenario, warmup)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
+  benchmark::RegisterBenchmark("psd/12/translation_free/eigen12", BM_PsdTranslationFree<false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/12/translation_free/restricted9", BM_PsdTranslationFree<true>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/volume/eigen12", BM_PsdVolume<false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/volume/analytic", BM_PsdVolume<true>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/6/fixed", BM_Psd<6, false>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/6/dynamic", BM_Psd<6, true>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/12/fixed", BM_Psd<12, false>)->Unit(benchmark::kMicrosecond);

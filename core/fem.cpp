@@ -7,8 +7,8 @@
 // (= J F^-T when F is invertible), [v]x the cross-product matrix of v. Derivatives with respect
 // to F act on vec(dF), column-major, so entry (a, b) of F is component a + 3 b.
 #include "core/fem.hpp"
+#include "core/psd_projection.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <cmath>
 #include <stdexcept>
@@ -330,11 +330,9 @@ Mat12 hessian_from_stress_derivative(const FemElement& e, const Eigen::Matrix<do
         for (int v = 0; v <= D; ++v) H(3 * v + a, 3 * w + a2) = block(v, w);
     }
   H = 0.5 * (H + H.transpose());  // exact symmetry, whatever the rounding of the products
-  if (project_psd) {
-    const Eigen::SelfAdjointEigenSolver<Mat12> eig(H);
-    const Vec12 clamped = eig.eigenvalues().cwiseMax(0.0);
-    H = eig.eigenvectors() * clamped.asDiagonal() * eig.eigenvectors().transpose();
-  }
+  // V0 B^T A B does not see translations (the shape gradients b_v sum to 0): its projection is
+  // that of its 9 x 9 restriction (core/psd_projection.hpp).
+  if (project_psd) psd::project_psd_translation_free(H);
   return H;
 }
 

@@ -8,7 +8,6 @@
 // positions in the values array (slots_), nothing is searched or allocated while evaluating.
 #include "reference/energy.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -19,6 +18,7 @@
 
 #include "core/constraint_functions.hpp"
 #include "core/fem.hpp"
+#include "core/psd_projection.hpp"
 
 namespace pbdbench {
 
@@ -220,14 +220,6 @@ BendingTerm bending_term(const Constraint& c, const Points& x, Vec12* grad_C, Ma
   if (grad_C) *grad_C = -s * gphi;
   if (hess_half_C2) *hess_half_C2 = gphi * gphi.transpose() - (t.C * s) * hphi;
   return t;
-}
-
-// Projection of a symmetric matrix onto the positive semi-definite cone.
-template <int N>
-void project_psd(Eigen::Matrix<double, N, N>& H) {
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(H);
-  const Eigen::Matrix<double, N, 1> clamped = eig.eigenvalues().cwiseMax(0.0);
-  H = eig.eigenvectors() * clamped.asDiagonal() * eig.eigenvectors().transpose();
 }
 
 // Adds the dense block H over K particles (dofs dof[0..K-1], -1 = not dynamic) at its slots.
@@ -584,10 +576,13 @@ void EnergyModel::visit_hessian_terms(const Points& x, bool project, Visit&& vis
         const Vec3 x0 = x.row(p[0]), x1 = x.row(p[1]), x2 = x.row(p[2]), x3 = x.row(p[3]);
         const ConstraintEval ev = eval_volume(x0, x1, x2, x3, c.rest);
         if (!ev.valid) continue;
+        if (project) {  // the same projection through the term's analytic eigensystem
+          visit(psd::volume_term_hessian_psd(x0, x1, x2, x3, c.rest, c.compliance), slots, dof);
+          break;
+        }
         Vec12 g;
         for (int i = 0; i < 4; ++i) g.segment<3>(3 * i) = ev.grad[static_cast<size_t>(i)];
-        Mat12 H = inv_alpha * (g * g.transpose() + ev.C * volume_hessian(x0, x1, x2, x3));
-        if (project) project_psd<12>(H);
+        const Mat12 H = inv_alpha * (g * g.transpose() + ev.C * volume_hessian(x0, x1, x2, x3));
         visit(H, slots, dof);
         break;
       }
@@ -596,7 +591,7 @@ void EnergyModel::visit_hessian_terms(const Points& x, bool project, Visit&& vis
         Mat12 H;
         if (!bending_term(c, x, nullptr, &H).valid) continue;
         H *= inv_alpha;
-        if (project) project_psd<12>(H);
+        if (project) psd::project_psd_translation_free(H);  // a hinge does not see translations
         visit(H, slots, dof);
         break;
       }

@@ -1,15 +1,17 @@
 #include "reference/global_newton.hpp"
 
 #include "core/cancel.hpp"
+#include "core/psd_projection.hpp"
 
 #include <Eigen/CholmodSupport>
-#include <Eigen/Eigenvalues>
 #include <Eigen/IterativeLinearSolvers>
+#include <omp.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace pbdbench {
 
@@ -39,32 +41,43 @@ double row_potential(const GlobalRow& row, double C, double lambda, double eps) 
   return -0.5 * eps * lambda * lambda;
 }
 
-// Projection of a symmetric K x K block onto the positive semi-definite cone, in fixed-size
-// matrices (no heap allocation).
+// Projection of a row's block onto the positive semi-definite cone (its leading k x k, k = 3
+// times the row's particles; core/psd_projection.hpp). A four-particle row (a rigid volume) does
+// not see translations: its projection goes through the 9 x 9 restriction.
 template <int K>
-void project_psd_fixed(Mat12& H) {
-  using M = Eigen::Matrix<double, K, K>;
-  const M sub = H.template topLeftCorner<K, K>();
-  const Eigen::SelfAdjointEigenSolver<M> eig(sub);
-  H.template topLeftCorner<K, K>() =
-      eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+void project_corner(Mat12& H) {
+  Eigen::Matrix<double, K, K> sub = H.topLeftCorner<K, K>();
+  psd::project_psd<K>(sub);
+  H.topLeftCorner<K, K>() = sub;
 }
 
-// Projection of a symmetric block onto the positive semi-definite cone (its leading k x k, k = 3
-// times the row's particles).
-void project_psd(Mat12& H, int k) {
+void project_row_block(Mat12& H, int k) {
   switch (k) {
-    case 3: project_psd_fixed<3>(H); return;
-    case 6: project_psd_fixed<6>(H); return;
-    case 9: project_psd_fixed<9>(H); return;
-    case 12: project_psd_fixed<12>(H); return;
+    case 3: project_corner<3>(H); return;
+    case 6: project_corner<6>(H); return;
+    case 9: project_corner<9>(H); return;
+    case 12: psd::project_psd_translation_free(H); return;
     default: break;
   }
-  const Eigen::MatrixXd sub = H.topLeftCorner(k, k);
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(sub);
-  H.topLeftCorner(k, k) = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
-                          eig.eigenvectors().transpose();
+  throw std::logic_error("project_row_block: a row of " + std::to_string(k / 3) + " particles");
 }
+
+// Debian's CHOLMOD is built with num_threads(4) on its OpenMP regions (CHOLMOD_OMP_NUM_THREADS),
+// whatever the machine: on a 2-core machine shared with other runs its four threads spin between
+// regions and take the cores from the step. The global solvers step on one thread (their BLAS,
+// ATLAS, is serial, and the regions are copies and scatters of the factor), so CHOLMOD's calls run
+// with max-active-levels 0: every region on the calling thread alone, the same bits as with four
+// (docs/performance.md). The setting is an ICV of the calling thread, restored on leaving.
+class SerialOpenMp {
+ public:
+  SerialOpenMp() : saved_(omp_get_max_active_levels()) { omp_set_max_active_levels(0); }
+  ~SerialOpenMp() { omp_set_max_active_levels(saved_); }
+  SerialOpenMp(const SerialOpenMp&) = delete;
+  SerialOpenMp& operator=(const SerialOpenMp&) = delete;
+
+ private:
+  int saved_;
+};
 
 }  // namespace
 
@@ -73,8 +86,18 @@ struct GlobalNewton::Impl {
   GlobalLinearSolver kind;
   // CHOLMOD: the factorisation object keeps its symbolic analysis while the pattern stays.
   Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> cholmod;
-  std::vector<int> pattern_outer, pattern_inner;  // of the last analysed matrix
-  bool analysed = false;
+  bool analysed = false;  // cholmod holds the analysis of A's pattern
+
+  // The Newton matrix, both triangles, in a pattern kept between iterations and steps: the
+  // energy's (fixed) and every row's blocks (zero when inactive), rebuilt only when the rows'
+  // stencils change (contacts come and go); its values are filled in place.
+  SpMat A;
+  bool have_pattern = false;
+  std::vector<int> row_dofs;                 // the dof blocks of each row's stencil (-1: none)
+  std::vector<std::int64_t> energy_slot;     // energy pattern position -> index into A's values
+  std::vector<std::int64_t> row_slot;        // per row, (a, b) of its stencil: column offset of
+                                             // entry (3 dof_a, 3 dof_b) in A, -1 for none
+  std::vector<double> hessian_values, row_sum;  // scratch (energy pattern; A's pattern)
 
   // Terms of the rows at x (eps fixed for the solve).
   void row_terms(const GlobalProblem& problem, const Points& x, const std::vector<double>& lambda,
@@ -97,7 +120,7 @@ struct GlobalNewton::Impl {
       t.block.topLeftCorner(k, k) = (g.head(k) * g.head(k).transpose()) / t.eps;
       if (t.l_eff != 0.0)
         t.block.topLeftCorner(k, k) -= t.l_eff * problem.row_hessian(static_cast<int>(r), x).topLeftCorner(k, k);
-      project_psd(t.block, k);
+      project_row_block(t.block, k);
     }
   }
 
@@ -114,37 +137,109 @@ struct GlobalNewton::Impl {
     return L;
   }
 
-  // The rows' blocks as a sparse matrix over the dofs (every row's block, zero when inactive, so
-  // that the pattern changes only with the set of rows).
-  SpMat row_matrix(const GlobalProblem& problem, const std::vector<RowTerm>& terms) const {
+  // The rows' stencils as dof blocks, 4 entries a row (-1 past its count or where a particle is
+  // not dynamic).
+  static void stencil_dofs(const GlobalProblem& problem, const std::vector<RowTerm>& terms,
+                           std::vector<int>& out) {
+    out.assign(4 * terms.size(), -1);
+    for (size_t r = 0; r < terms.size(); ++r)
+      for (int a = 0; a < terms[r].e.count; ++a)
+        out[4 * r + static_cast<size_t>(a)] =
+            problem.particle_dof(terms[r].e.particles[static_cast<size_t>(a)]);
+  }
+
+  // A's pattern, the energy's entries and the rows' blocks, and the slots that fill it. Returns
+  // true when the pattern was (re)built, so that CHOLMOD analyses it again.
+  bool build_pattern(const GlobalProblem& problem, const std::vector<RowTerm>& terms) {
+    std::vector<int> dofs;
+    stencil_dofs(problem, terms, dofs);
+    if (have_pattern && dofs == row_dofs) return false;
+    row_dofs = std::move(dofs);
+    const SparsityPattern& p = problem.energy().hessian_pattern();
     std::vector<Eigen::Triplet<double>> triplets;
-    for (const RowTerm& t : terms)
-      for (int a = 0; a < t.e.count; ++a) {
-        const int da = problem.particle_dof(t.e.particles[static_cast<size_t>(a)]);
-        if (da < 0) continue;
-        for (int b = 0; b < t.e.count; ++b) {
-          const int db = problem.particle_dof(t.e.particles[static_cast<size_t>(b)]);
-          if (db < 0) continue;
+    triplets.reserve(static_cast<size_t>(p.nnz()));
+    for (int c = 0; c < p.n; ++c)
+      for (std::int64_t k = p.column_start[static_cast<size_t>(c)];
+           k < p.column_start[static_cast<size_t>(c) + 1]; ++k)
+        triplets.emplace_back(static_cast<int>(p.row[static_cast<size_t>(k)]), c, 0.0);
+    for (size_t r = 0; r < terms.size(); ++r)
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b) {
+          const int da = row_dofs[4 * r + static_cast<size_t>(a)];
+          const int db = row_dofs[4 * r + static_cast<size_t>(b)];
+          if (da < 0 || db < 0) continue;
           for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-              triplets.emplace_back(3 * da + i, 3 * db + j, t.block(3 * a + i, 3 * b + j));
+            for (int j = 0; j < 3; ++j) triplets.emplace_back(3 * da + i, 3 * db + j, 0.0);
         }
-      }
-    SpMat R(problem.dofs(), problem.dofs());
-    R.setFromTriplets(triplets.begin(), triplets.end());
-    return R;
+    A.resize(problem.dofs(), problem.dofs());
+    A.setFromTriplets(triplets.begin(), triplets.end());
+    A.makeCompressed();
+    const int* outer = A.outerIndexPtr();
+    const int* inner = A.innerIndexPtr();
+    auto position = [&](int row, int col) -> std::int64_t {
+      const int* begin = inner + outer[col];
+      const int* end = inner + outer[col + 1];
+      return static_cast<std::int64_t>(std::lower_bound(begin, end, row) - inner);
+    };
+    energy_slot.resize(static_cast<size_t>(p.nnz()));
+    for (int c = 0; c < p.n; ++c)
+      for (std::int64_t k = p.column_start[static_cast<size_t>(c)];
+           k < p.column_start[static_cast<size_t>(c) + 1]; ++k)
+        energy_slot[static_cast<size_t>(k)] = position(static_cast<int>(p.row[static_cast<size_t>(k)]), c);
+    // Every block of A is whole (3 x 3) and the three columns of a dof block share their rows,
+    // so one offset within the column serves the block's nine entries.
+    row_slot.assign(16 * terms.size(), -1);
+    for (size_t r = 0; r < terms.size(); ++r)
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b) {
+          const int da = row_dofs[4 * r + static_cast<size_t>(a)];
+          const int db = row_dofs[4 * r + static_cast<size_t>(b)];
+          if (da >= 0 && db >= 0)
+            row_slot[16 * r + static_cast<size_t>(4 * a + b)] = position(3 * da, 3 * db) - outer[3 * db];
+        }
+    have_pattern = true;
+    analysed = false;
+    return true;
+  }
+
+  // A = the energy's Hessian (projected) + the rows' blocks, in place.
+  void assemble(const GlobalProblem& problem, const Points& x, const std::vector<RowTerm>& terms) {
+    build_pattern(problem, terms);
+    problem.hessian_values(x, hessian_values);
+    double* values = A.valuePtr();
+    const int* outer = A.outerIndexPtr();
+    std::fill(values, values + A.nonZeros(), 0.0);
+    for (size_t k = 0; k < hessian_values.size(); ++k) values[energy_slot[k]] = hessian_values[k];
+    if (terms.empty()) return;
+    // The rows' sums first, row by row, then added to the energy's: the order of the sparse sum
+    // H + R this replaces.
+    row_sum.assign(static_cast<size_t>(A.nonZeros()), 0.0);
+    for (size_t r = 0; r < terms.size(); ++r)
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b) {
+          const std::int64_t off = row_slot[16 * r + static_cast<size_t>(4 * a + b)];
+          if (off < 0) continue;
+          const int db = row_dofs[4 * r + static_cast<size_t>(b)];
+          for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i)
+              row_sum[static_cast<size_t>(outer[3 * db + j] + off + i)] += terms[r].block(3 * a + i, 3 * b + j);
+        }
+    for (size_t k = 0; k < row_sum.size(); ++k) values[k] += row_sum[k];
   }
 
   // Solves A dq = b; returns false when the solver failed. Counts into result.
   bool solve_cholmod(const SpMat& A, const Eigen::VectorXd& b, Eigen::VectorXd& dq,
                      GlobalResult& result) {
-    const std::vector<int> outer(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
-    const std::vector<int> inner(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
-    if (!analysed || outer != pattern_outer || inner != pattern_inner) {
+    const SerialOpenMp serial;
+    if (!analysed) {
       cholmod.setShift(0.0);
+      // The fill-reducing ordering: CHOLMOD tries AMD and METIS and keeps the one with the fewer
+      // nonzeros in L (its default tries METIS only when AMD's fill is poor, and keeps AMD on the
+      // 64 x 64 cloth: 6.7e8 flops a factorisation against METIS's 4.5e8). Both are deterministic.
+      cholmod.cholmod().nmethods = 2;
+      cholmod.cholmod().method[0].ordering = CHOLMOD_AMD;
+      cholmod.cholmod().method[1].ordering = CHOLMOD_METIS;
       cholmod.analyzePattern(A);
-      pattern_outer = outer;
-      pattern_inner = inner;
       analysed = true;
     }
     cholmod.setShift(0.0);
@@ -307,9 +402,9 @@ GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
     if (im.kind == GlobalLinearSolver::ConjugateGradient && o.global_matrix_free) {
       solved = im.solve_cg_matrix_free(problem, x, terms, b, dq, result);
     } else {
-      const SpMat A = problem.hessian(x) + im.row_matrix(problem, terms);
-      solved = im.kind == GlobalLinearSolver::Cholmod ? im.solve_cholmod(A, b, dq, result)
-                                                      : im.solve_cg_assembled(A, b, dq, result);
+      im.assemble(problem, x, terms);
+      solved = im.kind == GlobalLinearSolver::Cholmod ? im.solve_cholmod(im.A, b, dq, result)
+                                                      : im.solve_cg_assembled(im.A, b, dq, result);
     }
     result.time_linear += seconds_since(t_lin);
     if (!solved) break;

@@ -143,23 +143,27 @@ void GlobalProblem::gradient(const Points& x, Eigen::VectorXd& g) const {
     pattern_product(energy_.hessian_pattern(), damping_values_, h_, q - q_start_, g);
 }
 
-Eigen::SparseMatrix<double> GlobalProblem::hessian(const Points& x) const {
+void GlobalProblem::hessian_values(const Points& x, std::vector<double>& values) const {
   const SparsityPattern& p = energy_.hessian_pattern();
-  std::vector<double> values;
   energy_.hessian(x, values, /*project_psd=*/true);
   const double h2 = h_ * h_;
   for (double& v : values) v *= h2;
   if (!damping_values_.empty())
     for (size_t k = 0; k < values.size(); ++k) values[k] += h_ * damping_values_[k];
+  for (int c = 0; c < p.n; ++c) values[static_cast<size_t>(p.find(c, c))] += mass()(c);
+}
+
+Eigen::SparseMatrix<double> GlobalProblem::hessian(const Points& x) const {
+  const SparsityPattern& p = energy_.hessian_pattern();
+  std::vector<double> values;
+  hessian_values(x, values);
   Eigen::SparseMatrix<double> H(p.n, p.n);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(values.size());
   for (int c = 0; c < p.n; ++c)
     for (std::int64_t k = p.column_start[static_cast<size_t>(c)];
-         k < p.column_start[static_cast<size_t>(c) + 1]; ++k) {
-      const int r = static_cast<int>(p.row[static_cast<size_t>(k)]);
-      triplets.emplace_back(r, c, values[static_cast<size_t>(k)] + (r == c ? mass()(r) : 0.0));
-    }
+         k < p.column_start[static_cast<size_t>(c) + 1]; ++k)
+      triplets.emplace_back(static_cast<int>(p.row[static_cast<size_t>(k)]), c, values[static_cast<size_t>(k)]);
   H.setFromTriplets(triplets.begin(), triplets.end());
   return H;
 }

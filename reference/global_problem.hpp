@@ -122,6 +122,9 @@ class GlobalProblem {
   // The Hessian of E with every term projected onto the positive semi-definite cone, as a
   // (dofs x dofs) matrix with both triangles.
   Eigen::SparseMatrix<double> hessian(const Points& x) const;
+  // The same Hessian's values in the order of energy().hessian_pattern() (values is resized
+  // and overwritten; a caller that keeps it between calls allocates nothing).
+  void hessian_values(const Points& x, std::vector<double>& values) const;
   // out = (that Hessian) v, term by term without assembling it.
   void hessian_product(const Points& x, const Eigen::VectorXd& v, Eigen::VectorXd& out) const;
   // The diagonal of that Hessian (for a Jacobi preconditioner).
