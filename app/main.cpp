@@ -292,6 +292,14 @@ int cmd_summary(const std::vector<std::string>& files, const std::string& index_
     std::sort(h5.begin(), h5.end());
     for (const auto& p : h5) entries.push_back({p.stem().string(), p});
   }
+  // The ParaView data files that `run` writes beside its run files (RUN.viz.h5) are passed
+  // over, so that `summary results/mine/*.h5` reads the run files of a folder.
+  std::erase_if(entries, [](const SummaryEntry& e) {
+    if (!is_xdmf_data(e.file)) return false;
+    std::cerr << "pbdbench: summary: passed over " << e.file.string()
+              << " (the ParaView fields of a run's export, not a run file)\n";
+    return true;
+  });
   if (entries.empty()) throw config::ConfigError({"summary", 0}, "", "no run files given");
   for (const SummaryEntry& e : entries) {
     std::error_code ec;
@@ -444,6 +452,7 @@ int main(int argc, char** argv) {
 
   auto* describe = app.add_subcommand("describe", "Describe a scenario's keys (types, defaults, units, docs) or a scene kind's");
   describe->add_option("what", scenario, "A scenario (file or name) or a scene kind")->required();
+  describe->add_option("--solver", solver, "Describe for this solver (same as --set solver.name=NAME)");
   describe->add_option("--set", sets, "Overrides to apply before describing (repeatable)");
   bool kind = false;
   describe->add_flag("--kind", kind, "Describe the scene kind of this name, not a scenario");
@@ -579,7 +588,10 @@ int main(int argc, char** argv) {
     if (*export_sub) return cmd_export(files, out);
     if (*sweep) return cmd_sweep(file, out, jobs, force, sweep_array, sets, quiet, argc, argv);
     if (app.got_subcommand("list")) return cmd_list();
-    if (*describe) return cmd_describe(scenario, sets, kind, describe_all);
+    if (*describe) {
+      if (!solver.empty()) sets.insert(sets.begin(), "solver.name=" + solver);
+      return cmd_describe(scenario, sets, kind, describe_all);
+    }
     if (*summary) return cmd_summary(files, index_dir, csv);
     if (*compare) return cmd_compare(file, reference, out, plot, until);
     if (*converge) return cmd_converge(scenario, sets, warmup_steps, max_sweeps, methods, out, quiet);

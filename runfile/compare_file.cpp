@@ -23,26 +23,26 @@ using layout::IndexPairs;
 // The layout.
 
 const std::array kHead = {
-    PBDBENCH_DERIVED(R, "content", "the kind of file", std::string(kContent)),
-    PBDBENCH_DERIVED(R, "compare_format_version", "the layout's version", 1LL),
+    PBDBENCH_DERIVED(R, "content", "", "the kind of file: `pbdbench compare`", std::string(kContent)),
+    PBDBENCH_DERIVED(R, "compare_format_version", "", "the layout's version: 1", 1LL),
 };
 // (then run_<key> and reference_<key>: the two runs' maps)
 
 const std::array kRoot = {
-    PBDBENCH_ATTRIBUTE(R, "until", "s, the comparison's end asked for (inf: none)", until),
-    PBDBENCH_DERIVED(R, "end_time", "s, the last common frame time (NaN when none)",
+    PBDBENCH_ATTRIBUTE(R, "until", "s", "the comparison's end asked for (inf without `--until`)", until),
+    PBDBENCH_DERIVED(R, "end_time", "s", "the last common frame time (NaN when none)",
                      r.frames.time.empty() ? kNaN : r.frames.time.back()),
-    PBDBENCH_DERIVED(R, "frames_used", "the common frames, in words",
+    PBDBENCH_DERIVED(R, "frames_used", "", "the common frames, and which of the reference's were its own or interpolated, in words",
                      r.frames.time.empty() ? std::string() : match_line(r.frames, "frames")),
-    PBDBENCH_DERIVED(R, "rows_used", "the common series rows, in words",
+    PBDBENCH_DERIVED(R, "rows_used", "", "the same of the series rows",
                      r.rows.time.empty() ? std::string() : match_line(r.rows, "rows")),
-    PBDBENCH_ATTRIBUTE(R, "frame_spacing_run", "s, median spacing of the run's frames compared",
+    PBDBENCH_ATTRIBUTE(R, "frame_spacing_run", "s", "median spacing of the run's frames compared",
                        frame_spacing_run),
-    PBDBENCH_ATTRIBUTE(R, "frame_spacing_reference",
-                       "s, the same of the reference's frames in the window",
+    PBDBENCH_ATTRIBUTE(R, "frame_spacing_reference", "s",
+                       "the same of the reference's frames in the window",
                        frame_spacing_reference),
     layout::AttributeSpec<R>{
-        "warnings", "one per line",
+        "warnings", "", "the comparison's warnings, one per line; empty when none",
         [](const R& r) { return layout::Value(layout::join_lines(r.warnings)); },
         [](R& r, const layout::Value& v) {
           if (const auto* s = std::get_if<std::string>(&v)) r.warnings = layout::split_lines(*s);
@@ -188,6 +188,21 @@ std::string match_line(const TimeMatch& m, const char* what) {
       m.time.size(), what, num(m.time.front()), num(m.time.back()), what, m.exact, interpolated);
 }
 
+std::vector<AttributeInfo> compare_root_attributes() {
+  std::vector<AttributeInfo> out;
+  layout::describe(kHead, out);
+  for (const auto& run : kRuns) {
+    const std::string prefix = run.first;
+    const std::string whose = prefix == "run_" ? "the run's" : "the reference's";
+    out.push_back({prefix + "<key>", AttributeType::Text, "",
+                   whose + " file, solver, scenario, status, config and git_commit (one attribute per key)",
+                   true});
+  }
+  layout::describe(kRoot, out);
+  for (AttributeInfo& a : provenance_attributes()) out.push_back(std::move(a));
+  return out;
+}
+
 void write_compare_file(const fs::path& path, const CompareResult& r) {
   layout::write_file(path, "compare", [&](H5::H5File& file) {
     layout::write_attributes(file, kHead, r);
@@ -219,6 +234,7 @@ CompareFile read_compare_file(const fs::path& path) {
         if (name.starts_with(prefix)) (r.*map)[name.substr(std::string(prefix).size())] = value;
     layout::read_attributes(file, kHead, r);
     layout::read_attributes(file, kRoot, r);
+    out.provenance = layout::read_provenance(file);
     if (!file.nameExists("/compare")) return;
     const H5::Group g = file.openGroup("/compare");
     layout::read_datasets(g, kCompare, r);

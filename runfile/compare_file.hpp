@@ -92,4 +92,9 @@ using CompareFile = FileRead<CompareResult>;
 // Throws std::runtime_error naming the path when the file cannot be read or is not a compare file.
 CompareFile read_compare_file(const std::filesystem::path& path);
 
+// The root attributes of a compare file, as compare_file.cpp's tables declare them, in the order
+// they are written: content, compare_format_version, run_<key> and reference_<key> (one row
+// each, for every key of CompareResult::run), until ... warnings, then provenance_attributes().
+std::vector<AttributeInfo> compare_root_attributes();
+
 }  // namespace pbdbench

@@ -21,47 +21,47 @@ using M = ConvergeMethod;
 // The layout. The root (then created and the build's provenance):
 
 const std::array kRoot = {
-    PBDBENCH_DERIVED(R, "content", "the kind of file", std::string(kContent)),
-    PBDBENCH_DERIVED(R, "converge_format_version", "the layout's version", 1LL),
-    PBDBENCH_ATTRIBUTE(R, "scene", "the scenario's name", scene),
-    PBDBENCH_ATTRIBUTE(R, "scenario_file", "the scenario file", scenario_file),
-    PBDBENCH_ATTRIBUTE(R, "config", "the resolved configuration (TOML)", config),
-    PBDBENCH_ATTRIBUTE(R, "dt", "s, time.dt", dt),
-    PBDBENCH_DERIVED(R, "h", "s, the measured step: one substep of dt", r.dt),
-    PBDBENCH_DERIVED(R, "substeps", "substeps of the measured step", 1LL),
-    PBDBENCH_ATTRIBUTE(R, "time", "s, the simulated time at the start of the measured step", time),
-    PBDBENCH_ATTRIBUTE(R, "warmup_steps", "steps of the scene's own solver before it",
+    PBDBENCH_DERIVED(R, "content", "", "the kind of file: `pbdbench converge`", std::string(kContent)),
+    PBDBENCH_DERIVED(R, "converge_format_version", "", "the layout's version: 1", 1LL),
+    PBDBENCH_ATTRIBUTE(R, "scene", "", "the scenario's name", scene),
+    PBDBENCH_ATTRIBUTE(R, "scenario_file", "", "the scenario file", scenario_file),
+    PBDBENCH_ATTRIBUTE(R, "config", "", "the resolved configuration (TOML)", config),
+    PBDBENCH_ATTRIBUTE(R, "dt", "s", "time.dt", dt),
+    PBDBENCH_DERIVED(R, "h", "s", "the measured step: one substep of dt", r.dt),
+    PBDBENCH_DERIVED(R, "substeps", "", "substeps of the measured step", 1LL),
+    PBDBENCH_ATTRIBUTE(R, "time", "s", "the simulated time at the start of the measured step", time),
+    PBDBENCH_ATTRIBUTE(R, "warmup_steps", "", "steps of the scene's own solver before it",
                        warmup_steps),
-    PBDBENCH_ATTRIBUTE(R, "warmup_solver", "the scene's own solver.name", warmup_solver),
-    PBDBENCH_ATTRIBUTE(R, "particles", "particles of the scene", particles),
-    PBDBENCH_ATTRIBUTE(R, "dynamic_particles", "particles with inv_mass != 0", dynamic_particles),
-    PBDBENCH_ATTRIBUTE(R, "constraints", "constraints of the model", constraints),
-    PBDBENCH_ATTRIBUTE(R, "rows", "rigid rows and contacts of the step", rows),
-    PBDBENCH_ATTRIBUTE(R, "contacts", "contacts of the step", contacts),
-    PBDBENCH_ATTRIBUTE(R, "tolerance", "m, solver.global.tolerance", tolerance),
-    PBDBENCH_ATTRIBUTE(R, "start_residual", "m, the residual at x~", start_residual),
-    PBDBENCH_ATTRIBUTE(R, "residual_note", "how the residual is scored", residual_note),
-    PBDBENCH_DERIVED(R, "error_note", "how the error is measured",
+    PBDBENCH_ATTRIBUTE(R, "warmup_solver", "", "the scene's own solver.name", warmup_solver),
+    PBDBENCH_ATTRIBUTE(R, "particles", "", "particles of the scene", particles),
+    PBDBENCH_ATTRIBUTE(R, "dynamic_particles", "", "particles with inv_mass != 0", dynamic_particles),
+    PBDBENCH_ATTRIBUTE(R, "constraints", "", "constraints of the model", constraints),
+    PBDBENCH_ATTRIBUTE(R, "rows", "", "rigid rows and contacts of the step", rows),
+    PBDBENCH_ATTRIBUTE(R, "contacts", "", "contacts of the step", contacts),
+    PBDBENCH_ATTRIBUTE(R, "tolerance", "m", "solver.global.tolerance", tolerance),
+    PBDBENCH_ATTRIBUTE(R, "start_residual", "m", "the residual at x~", start_residual),
+    PBDBENCH_ATTRIBUTE(R, "residual_note", "", "how the residual is scored", residual_note),
+    PBDBENCH_DERIVED(R, "error_note", "", "how the error is measured",
                      std::string("error: sqrt(sum m_i |x_i - x*_i|^2 / sum m_i) over the dynamic "
                                  "particles, x* the global-cholmod solution")),
-    PBDBENCH_DERIVED(R, "methods", "the methods' keys (their groups), comma-separated",
+    PBDBENCH_DERIVED(R, "methods", "", "the methods' keys (their groups), comma-separated",
                      [&] {
                        std::string keys;
                        for (const ConvergeMethod& m : r.methods)
                          keys += (keys.empty() ? "" : ",") + m.key;
                        return keys;
                      }()),
-    PBDBENCH_ATTRIBUTE(R, "machine", "the CPU model (/proc/cpuinfo)", machine),
+    PBDBENCH_ATTRIBUTE(R, "machine", "", "the CPU model (/proc/cpuinfo)", machine),
 };
 
 // /<method>: attributes.
 const std::array kMethod = {
-    PBDBENCH_ATTRIBUTE(M, "method", "the method, in one line", description),
-    PBDBENCH_ATTRIBUTE(M, "iteration_kind", "what an iteration is", iteration_kind),
-    PBDBENCH_ATTRIBUTE(M, "xpbd", "1: an xpbd order (one step per sweep count); 0: a global solver",
+    PBDBENCH_ATTRIBUTE(M, "method", "", "the method, in one line", description),
+    PBDBENCH_ATTRIBUTE(M, "iteration_kind", "", "what an iteration is", iteration_kind),
+    PBDBENCH_ATTRIBUTE(M, "xpbd", "", "1: an xpbd order (one step per sweep count); 0: a global solver",
                        xpbd),
-    PBDBENCH_ATTRIBUTE(M, "converged", "global: reached solver.global.tolerance", converged),
-    PBDBENCH_ATTRIBUTE(M, "final_error", "m, distance of the last result or iterate from x*",
+    PBDBENCH_ATTRIBUTE(M, "converged", "", "global: reached solver.global.tolerance", converged),
+    PBDBENCH_ATTRIBUTE(M, "final_error", "m", "distance of the last result or iterate from x*",
                        final_error),
 };
 
@@ -87,6 +87,19 @@ const std::array kGlobal = {
 
 }  // namespace
 
+std::vector<AttributeInfo> converge_root_attributes() {
+  std::vector<AttributeInfo> out;
+  layout::describe(kRoot, out);
+  for (AttributeInfo& a : provenance_attributes()) out.push_back(std::move(a));
+  return out;
+}
+
+std::vector<AttributeInfo> converge_method_attributes() {
+  std::vector<AttributeInfo> out;
+  layout::describe(kMethod, out);
+  return out;
+}
+
 void write_converge_file(const fs::path& path, const ConvergeResult& r) {
   layout::write_file(path, "converge", [&](H5::H5File& file) {
     layout::write_attributes(file, kRoot, r);
@@ -108,6 +121,7 @@ ConvergeFile read_converge_file(const fs::path& path) {
   layout::read_file(path, "converge", kContent, [&](const H5::H5File& file) {
     h5::read_attributes(file, out.attributes, out.numbers);
     layout::read_attributes(file, kRoot, r);
+    out.provenance = layout::read_provenance(file);
     std::string keys = out.attributes["methods"];
     std::replace(keys.begin(), keys.end(), ',', '\n');
     for (const std::string& key : layout::split_lines(keys)) {

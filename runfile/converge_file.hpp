@@ -67,4 +67,9 @@ using ConvergeFile = FileRead<ConvergeResult>;
 // convergence file.
 ConvergeFile read_converge_file(const std::filesystem::path& path);
 
+// The attributes of a convergence file as converge_file.cpp's tables declare them, in the order
+// they are written: the root's (then provenance_attributes()), and each method group's.
+std::vector<AttributeInfo> converge_root_attributes();
+std::vector<AttributeInfo> converge_method_attributes();
+
 }  // namespace pbdbench

@@ -55,14 +55,34 @@ H5::Group subgroup(H5::Group& g, const std::string& path) {
 
 namespace pbdbench::layout {
 
-void write_provenance(H5::H5Object& obj) {
+namespace {
+
+const std::array kProvenance = {
+    PBDBENCH_ATTRIBUTE(Provenance, "created", "", "when the file was created, ISO 8601 UTC (`2025-01-31T12:00:00Z`)",
+                       created),
+    PBDBENCH_ATTRIBUTE(Provenance, "pbdbench_version", "", "the project version of the build that wrote the file",
+                       pbdbench_version),
+    PBDBENCH_ATTRIBUTE(Provenance, "git_commit", "",
+                       "the commit of that build, with `+dirty` when tracked files were modified", git_commit),
+    PBDBENCH_ATTRIBUTE(Provenance, "compiler", "", "compiler and version, e.g. `GNU 12.2.0`", compiler),
+    PBDBENCH_ATTRIBUTE(Provenance, "build_type", "", "CMake build type, e.g. `Release`", build_type),
+    PBDBENCH_ATTRIBUTE(Provenance, "cxx_flags", "", "the flags the sources were compiled with", cxx_flags),
+};
+
+}  // namespace
+
+Provenance current_provenance() {
   const BuildInfo& b = build_info();
-  h5::put(obj, "created", utc_now());
-  h5::put(obj, "pbdbench_version", std::string(b.version));
-  h5::put(obj, "git_commit", std::string(b.git_commit));
-  h5::put(obj, "compiler", std::string(b.compiler));
-  h5::put(obj, "build_type", std::string(b.build_type));
-  h5::put(obj, "cxx_flags", std::string(b.cxx_flags));
+  return {utc_now(), b.version, b.git_commit, b.compiler, b.build_type, b.cxx_flags};
+}
+
+void write_provenance(H5::H5Object& obj, const Provenance& p) { write_attributes(obj, kProvenance, p); }
+void write_provenance(H5::H5Object& obj) { write_provenance(obj, current_provenance()); }
+
+Provenance read_provenance(const H5::H5Object& obj) {
+  Provenance p;
+  read_attributes(obj, kProvenance, p);
+  return p;
 }
 
 std::string join_lines(const std::vector<std::string>& lines) {
@@ -117,3 +137,34 @@ void read_file(const std::filesystem::path& path, const std::string& kind, const
 }
 
 }  // namespace pbdbench::layout
+
+namespace pbdbench {
+
+const char* to_string(AttributeType type) {
+  switch (type) {
+    case AttributeType::Text: return "str";
+    case AttributeType::Integer: return "int";
+    case AttributeType::Real: return "float";
+  }
+  return "unknown";
+}
+
+std::string attributes_markdown(const std::vector<AttributeInfo>& attributes) {
+  auto cell = [](const std::string& text) {
+    std::string out;
+    for (char c : text) out += c == '|' ? std::string("\\|") : std::string(1, c);
+    return out;
+  };
+  std::string md = "| attribute | type | units | meaning |\n|---|---|---|---|\n";
+  for (const AttributeInfo& a : attributes)
+    md += "| `" + a.name + "` | " + to_string(a.type) + " | " + cell(a.units) + " | " + cell(a.doc) + " |\n";
+  return md;
+}
+
+std::vector<AttributeInfo> provenance_attributes() {
+  std::vector<AttributeInfo> out;
+  layout::describe(layout::kProvenance, out);
+  return out;
+}
+
+}  // namespace pbdbench

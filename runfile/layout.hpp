@@ -1,12 +1,15 @@
 // A file layout declared once, as tables: each attribute and each dataset of a file kind has a
 // name, units, a doc string and one accessor into the struct the file stores, and the writer and
 // the reader both walk the same tables (as the run file's series follow runfile/series.cpp).
-// The tables are compare_file.cpp's and converge_file.cpp's (regress_file.cpp's columns are
-// plainer); write_file and read_file open every kind. Only runfile/ includes this header.
+// The tables are run_file.cpp's (the root attributes), compare_file.cpp's and converge_file.cpp's
+// (regress_file.cpp's columns are plainer), and the provenance every file carries (layout.cpp);
+// each kind publishes its attribute tables as AttributeInfo rows (runfile/file_read.hpp) for the
+// tests and results/README.md. write_file and read_file open every kind. Only runfile/ includes
+// this header.
 //
-//   PBDBENCH_ATTRIBUTE(T, "name", "doc", member)    an attribute stored in T::member
-//   PBDBENCH_DERIVED(T, "name", "doc", expression)  written from an expression of `r` (a const
-//                                                   T&), not read back (constants, provenance)
+//   PBDBENCH_ATTRIBUTE(T, "name", "units", "doc", member)    an attribute stored in T::member
+//   PBDBENCH_DERIVED(T, "name", "units", "doc", expression)  written from an expression of `r` (a
+//                                                   const T&), not read back (constants, summaries)
 //   PBDBENCH_DATASET(T, "path", "units", "doc", member [, present [, doc_of]])
 //                                                   a dataset of T::member, written when
 //                                                   present(r) (null: always), its doc doc_of(r)
@@ -22,6 +25,7 @@
 #include <variant>
 #include <vector>
 
+#include "runfile/file_read.hpp"
 #include "runfile/h5_io.hpp"
 
 namespace pbdbench::layout {
@@ -56,21 +60,22 @@ void assign(I& out, const Value& v) {
 template <class T>
 struct AttributeSpec {
   std::string_view name;
+  std::string_view units;  // "" for none
   std::string_view doc;
   Value (*get)(const T& r);
   void (*set)(T& r, const Value& v) = nullptr;  // null: derived when written, not read back
 };
 
-#define PBDBENCH_ATTRIBUTE(T, name, doc, member)                                     \
+#define PBDBENCH_ATTRIBUTE(T, name, units, doc, member)                              \
   ::pbdbench::layout::AttributeSpec<T> {                                             \
-    name, doc, [](const T& r) { return ::pbdbench::layout::value_of(r.member); },    \
+    name, units, doc, [](const T& r) { return ::pbdbench::layout::value_of(r.member); },    \
         [](T& r, const ::pbdbench::layout::Value& v) {                               \
           ::pbdbench::layout::assign(r.member, v);                                   \
         }                                                                            \
   }
-#define PBDBENCH_DERIVED(T, name, doc, expression)                                                 \
+#define PBDBENCH_DERIVED(T, name, units, doc, expression)                                          \
   ::pbdbench::layout::AttributeSpec<T> {                                                           \
-    name, doc, []([[maybe_unused]] const T& r) { return ::pbdbench::layout::value_of(expression); }, \
+    name, units, doc, []([[maybe_unused]] const T& r) { return ::pbdbench::layout::value_of(expression); }, \
         nullptr                                                                                    \
   }
 
@@ -110,6 +115,19 @@ void read_attributes(const H5::H5Object& obj, const std::array<AttributeSpec<T>,
     const std::string name(a.name);
     if (a.set != nullptr && obj.attrExists(name)) a.set(r, get(obj.openAttribute(name)));
   }
+}
+
+// The table's rows as AttributeInfo (the type is the one its accessor gives on a default T).
+inline AttributeType type_of(const Value& v) {
+  if (std::holds_alternative<std::string>(v)) return AttributeType::Text;
+  return std::holds_alternative<long long>(v) ? AttributeType::Integer : AttributeType::Real;
+}
+template <class T, size_t N>
+void describe(const std::array<AttributeSpec<T>, N>& table, std::vector<AttributeInfo>& out) {
+  const T blank{};
+  for (const AttributeSpec<T>& a : table)
+    out.push_back({std::string(a.name), type_of(a.get(blank)), std::string(a.units), std::string(a.doc),
+                   a.set != nullptr});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -197,9 +215,13 @@ void read_datasets(const H5::Group& g, const std::array<DatasetSpec<T>, N>& tabl
 
 namespace pbdbench::layout {
 
-// The attributes `created` (utc_now()), pbdbench_version, git_commit, compiler, build_type and
-// cxx_flags (runfile/build_info.hpp), in this order.
+// This build's provenance, created now (utc_now(), runfile/build_info.hpp).
+Provenance current_provenance();
+// The attributes of provenance_attributes() (created, pbdbench_version, git_commit, compiler,
+// build_type, cxx_flags), in this order: `p`'s, or this build's now.
+void write_provenance(H5::H5Object& obj, const Provenance& p);
 void write_provenance(H5::H5Object& obj);
+Provenance read_provenance(const H5::H5Object& obj);
 
 // Lines joined with '\n' (a `warnings` attribute), and split back (empty lines dropped).
 std::string join_lines(const std::vector<std::string>& lines);

@@ -45,12 +45,10 @@
 #include <string_view>
 #include <type_traits>
 
-#include "runfile/build_info.hpp"
 #include "runfile/h5_io.hpp"
 #include "runfile/layout.hpp"
 #include "runfile/output_guard.hpp"
 #include "runfile/shadow_file.hpp"
-#include "runfile/utc_now.hpp"
 
 namespace pbdbench {
 
@@ -64,15 +62,9 @@ const char* to_string(RunStatus status) {
   return "unknown";
 }
 
-std::string RunFileData::status() const {
-  auto it = attributes.find("status");
-  return it == attributes.end() ? std::string() : it->second;
-}
+std::string RunFileData::status() const { return root.status; }
 
-std::vector<std::string> RunFileData::warnings() const {
-  auto it = attributes.find("warnings");
-  return it == attributes.end() ? std::vector<std::string>() : layout::split_lines(it->second);
-}
+std::vector<std::string> RunFileData::warnings() const { return layout::split_lines(root.warnings); }
 
 namespace {
 
@@ -148,6 +140,61 @@ void set_attr(H5::H5Object& obj, const std::string& name, const std::vector<std:
   std::vector<const char*> ptrs;
   for (const std::string& v : values) ptrs.push_back(v.c_str());
   attr.write(type, ptrs.data());
+}
+
+// ---------------------------------------------------------------------------------------------
+// The root attributes, declared once (results/README.md carries run_root_attributes() as a
+// table): the writer writes each (put_root, by name: a name not in the table is a logic error)
+// and the reader reads each into RunFileData::root. The provenance follows (layout.cpp).
+
+using Root = RunRoot;
+
+const std::array kRoot = {
+    PBDBENCH_ATTRIBUTE(Root, "format_version", "", "layout version of this file: 1", format_version),
+    PBDBENCH_ATTRIBUTE(Root, "status", "",
+                       "`incomplete`, `complete`, `exploded` or `failed` (see above)", status),
+    PBDBENCH_ATTRIBUTE(Root, "status_reason", "", "why the run ended (empty or a sentence)", status_reason),
+    PBDBENCH_ATTRIBUTE(Root, "scenario", "", "the scenario's name", scenario),
+    PBDBENCH_ATTRIBUTE(Root, "scenario_file", "", "the path of the scenario file the run was configured from",
+                       scenario_file),
+    PBDBENCH_ATTRIBUTE(Root, "solver", "", "the solver's registered name (`pbd-seed`, `pbd`, `xpbd`, ...)",
+                       solver),
+    PBDBENCH_ATTRIBUTE(Root, "config", "",
+                       "the whole resolved configuration as TOML text (defaults and `--set` overrides "
+                       "applied): enough to repeat the run",
+                       config),
+    PBDBENCH_ATTRIBUTE(Root, "dt", "s", "the time step", dt),
+    PBDBENCH_ATTRIBUTE(Root, "steps_planned", "", "steps the run was configured to take", steps_planned),
+    PBDBENCH_ATTRIBUTE(Root, "material", "",
+                       "what the solver took each constraint group's material from, one line per group "
+                       "and kind: for `pbd` the k of each group, \"derived from alpha = ... (Mueller 2007 "
+                       "effective stiffness ...)\" or \"explicit override\" (docs/solvers.md, \"One "
+                       "material\"); for `pbd-seed` its k; for the others the compliance alpha",
+                       material),
+    PBDBENCH_ATTRIBUTE(Root, "steps_completed", "", "steps taken; while the run is going, as of the last flush",
+                       steps_completed),
+    PBDBENCH_ATTRIBUTE(Root, "wall_time", "s",
+                       "wall-clock time of the run; while the run is going, since the file was created, "
+                       "as of the last flush",
+                       wall_time),
+    PBDBENCH_ATTRIBUTE(Root, "exploded_step", "", "the step at which the run exploded; -1 otherwise",
+                       exploded_step),
+    PBDBENCH_ATTRIBUTE(Root, "exploded_time", "s", "the simulated time at which it exploded; -1 otherwise",
+                       exploded_time),
+    PBDBENCH_ATTRIBUTE(Root, "warnings", "",
+                       "the run's warnings, one a line; empty when none (see [Status](#status))", warnings),
+    PBDBENCH_ATTRIBUTE(Root, "warning_count", "", "the number of lines of `warnings`", warning_count),
+};
+
+// Writes kRoot's attribute `name` from `root` (rewritten in place when it exists).
+void put_root(H5::H5Object& file, const RunRoot& root, std::string_view name) {
+  for (const layout::AttributeSpec<Root>& a : kRoot)
+    if (a.name == name) {
+      std::visit([&](const auto& v) { set_attr(file, std::string(name), v); }, a.get(root));
+      return;
+    }
+  throw std::logic_error("run file: the root attribute " + std::string(name) +
+                         " is not declared in run_file.cpp kRoot");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -421,6 +468,7 @@ struct RunFileWriter::Impl {
   Clock::time_point last_publish = Clock::now();
   double last_publish_cost = 0.0;  // s
   std::optional<OutputLock> lock;  // one writer per path, for the writer's life
+  RunRoot root;                    // the root attributes as last written (kRoot)
   bool broken = false;             // a publish failed half-way: the working copy is gone
 
   void write_pending() {
@@ -472,8 +520,12 @@ struct RunFileWriter::Impl {
     const Clock::time_point t0 = Clock::now();
     write_pending();
     store_frames(durable);
-    set_attr(*file, "steps_completed", static_cast<long long>(last_step));
-    if (!durable) set_attr(*file, "wall_time", elapsed());
+    root.steps_completed = last_step;
+    put_root(*file, root, "steps_completed");
+    if (!durable) {
+      root.wall_time = elapsed();
+      put_root(*file, root, "wall_time");
+    }
     file->flush(H5F_SCOPE_GLOBAL);
     try {
       shadow_publish(file->getId(), path, durable);
@@ -552,31 +604,21 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
     w.file.emplace(shadow.string(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, fapl);
     H5::H5File& file = *w.file;
 
-    // Root attributes.
-    set_attr(file, "format_version", kFormatVersion);
-    set_attr(file, "status", to_string(RunStatus::Incomplete));
-    set_attr(file, "status_reason",
-             "not finished: the run is still going, or its process ended before finishing");
-    set_attr(file, "scenario", header.scenario);
-    set_attr(file, "scenario_file", header.scenario_file);
-    set_attr(file, "solver", header.solver);
-    set_attr(file, "config", header.config);
-    set_attr(file, "dt", header.dt);
-    set_attr(file, "steps_planned", static_cast<long long>(header.steps_planned));
-    set_attr(file, "material", header.material);
-    set_attr(file, "steps_completed", 0LL);
-    set_attr(file, "warnings", std::string());
-    set_attr(file, "warning_count", 0LL);
-    set_attr(file, "wall_time", 0.0);
-    set_attr(file, "exploded_step", -1LL);
-    set_attr(file, "exploded_time", -1.0);
-    set_attr(file, "created", utc_now());
-    const BuildInfo& build = build_info();
-    set_attr(file, "pbdbench_version", build.version);
-    set_attr(file, "git_commit", build.git_commit);
-    set_attr(file, "compiler", build.compiler);
-    set_attr(file, "build_type", build.build_type);
-    set_attr(file, "cxx_flags", build.cxx_flags);
+    // Root attributes (kRoot), then the provenance.
+    RunRoot& root = w.root;
+    root.format_version = kFormatVersion;
+    root.status = to_string(RunStatus::Incomplete);
+    root.status_reason = "not finished: the run is still going, or its process ended before finishing";
+    root.scenario = header.scenario;
+    root.scenario_file = header.scenario_file;
+    root.solver = header.solver;
+    root.config = header.config;
+    root.dt = header.dt;
+    root.steps_planned = header.steps_planned;
+    root.material = header.material;
+    root.provenance = layout::current_provenance();
+    for (const layout::AttributeSpec<Root>& a : kRoot) put_root(file, root, a.name);
+    layout::write_provenance(file, root.provenance);
 
     write_model(file, model);
     if (!header.pbd_stiffness.empty()) {
@@ -651,7 +693,8 @@ RunFileWriter::RunFileWriter(const std::filesystem::path& path, const RunHeader&
 RunFileWriter::~RunFileWriter() {
   if (!impl_ || impl_->closed) return;
   try {
-    set_attr(*impl_->file, "status_reason", "the writer was closed before the run finished");
+    impl_->root.status_reason = "the writer was closed before the run finished";
+    put_root(*impl_->file, impl_->root, "status_reason");
     impl_->dirty = true;
     impl_->publish(false);
   } catch (...) {
@@ -742,11 +785,11 @@ void RunFileWriter::flush() {
 void RunFileWriter::set_warnings(const std::vector<std::string>& lines) {
   Impl& w = *impl_;
   if (w.closed) throw std::logic_error("run file " + w.path.string() + ": set_warnings() after finish()");
-  std::string text;
-  for (const std::string& l : lines) text += (text.empty() ? "" : "\n") + l;
   try {
-    set_attr(*w.file, "warnings", text);
-    set_attr(*w.file, "warning_count", static_cast<long long>(lines.size()));
+    w.root.warnings = layout::join_lines(lines);
+    w.root.warning_count = static_cast<long long>(lines.size());
+    put_root(*w.file, w.root, "warnings");
+    put_root(*w.file, w.root, "warning_count");
     w.dirty = true;
   } catch (const H5::Exception& e) {
     fail(w.path, "cannot write the warnings: " + h5_message(e));
@@ -759,11 +802,14 @@ void RunFileWriter::finish(RunStatus status, const std::string& reason, long ste
   if (w.closed) throw std::logic_error("run file " + w.path.string() + ": finish() called twice");
   try {
     w.last_step = steps_completed;
-    set_attr(*w.file, "status", to_string(status));
-    set_attr(*w.file, "status_reason", reason);
-    set_attr(*w.file, "wall_time", wall_time);
-    set_attr(*w.file, "exploded_step", static_cast<long long>(exploded_step));
-    set_attr(*w.file, "exploded_time", exploded_time);
+    RunRoot& root = w.root;
+    root.status = to_string(status);
+    root.status_reason = reason;
+    root.wall_time = wall_time;
+    root.exploded_step = exploded_step;
+    root.exploded_time = exploded_time;
+    for (const char* name : {"status", "status_reason", "wall_time", "exploded_step", "exploded_time"})
+      put_root(*w.file, root, name);
     w.publish(true);
     w.close();
   } catch (const H5::Exception& e) {
@@ -779,6 +825,7 @@ namespace {
 // /frames: the times, and the positions and velocities of every frame or of the last.
 void read_frames(const H5::Group& g, RunFileParts::Frames which, bool velocities, RunFileData& data) {
   if (g.nameExists("time")) data.frame_time = h5::read_doubles(g.openDataSet("time"));
+  data.has_velocities = g.nameExists("velocities");
   for (auto [name, out] : {std::pair{"positions", &data.frames}, std::pair{"velocities", &data.velocities}}) {
     if (!g.nameExists(name) || (out == &data.velocities && !velocities)) continue;
     const H5::DataSet ds = g.openDataSet(name);
@@ -822,6 +869,8 @@ RunFileData read_run_file(const std::filesystem::path& path, const RunFileParts&
   try {
     H5::H5File file(path.string(), H5F_ACC_RDONLY);
     h5::read_attributes(file, data.attributes, data.numbers);
+    layout::read_attributes(file, kRoot, data.root);
+    data.root.provenance = layout::read_provenance(file);
 
     if (file.nameExists("/model")) {
       H5::Group model = file.openGroup("/model");
@@ -916,6 +965,13 @@ std::string state_hash(const std::filesystem::path& path) {
   RunFileParts parts;
   parts.frames = RunFileParts::Frames::Last;
   return state_hash(read_run_file(path, parts));
+}
+
+std::vector<AttributeInfo> run_root_attributes() {
+  std::vector<AttributeInfo> out;
+  layout::describe(kRoot, out);
+  for (AttributeInfo& a : provenance_attributes()) out.push_back(std::move(a));
+  return out;
 }
 
 }  // namespace pbdbench

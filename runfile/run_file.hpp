@@ -1,10 +1,13 @@
 // One HDF5 file per run. The layout is documented in results/README.md:
 //
-//   /                  attributes: format_version, status, status_reason, scenario,
-//                      scenario_file, solver, config (resolved TOML), dt, steps_planned,
-//                      steps_completed, exploded_step, exploded_time, wall_time, created,
-//                      warnings (one per line, "" when none: metrics/health.hpp), warning_count,
-//                      pbdbench_version, git_commit, compiler, build_type, cxx_flags
+//   /                  attributes: declared once, run_file.cpp kRoot (run_root_attributes():
+//                      name, type, units, doc; results/README.md carries its table verbatim),
+//                      written by the writer and read into RunFileData::root: format_version,
+//                      status, status_reason, scenario, scenario_file, solver, config (resolved
+//                      TOML), dt, steps_planned, material, steps_completed, wall_time,
+//                      exploded_step, exploded_time, warnings (one per line, "" when none:
+//                      metrics/health.hpp), warning_count, then the provenance (created,
+//                      pbdbench_version, git_commit, compiler, build_type, cxx_flags)
 //   /series/<name>     one dataset per series_table() entry (+ per-group series), extendible,
 //                      chunked; attributes units, doc, deterministic
 //   /frames/time       (F,) s
@@ -35,6 +38,7 @@
 #include <vector>
 
 #include "core/model.hpp"
+#include "runfile/file_read.hpp"
 #include "runfile/series.hpp"
 
 namespace pbdbench {
@@ -90,8 +94,34 @@ class RunFileWriter {
   std::unique_ptr<Impl> impl_;
 };
 
+// The run file's root attributes, one member each (run_file.cpp kRoot declares their names,
+// units and docs; run_root_attributes() lists them).
+struct RunRoot {
+  long long format_version = 0;  // 0: not in the file
+  std::string status;            // to_string(RunStatus)
+  std::string status_reason;
+  std::string scenario;
+  std::string scenario_file;
+  std::string solver;
+  std::string config;
+  double dt = 0.0;  // s
+  long long steps_planned = 0;
+  std::string material;
+  long long steps_completed = 0;
+  double wall_time = 0.0;  // s
+  long long exploded_step = -1;
+  double exploded_time = -1.0;  // s
+  std::string warnings;         // one per line
+  long long warning_count = 0;
+  Provenance provenance;
+};
+
+// The root attributes in the order the writer writes them: kRoot's, then provenance_attributes().
+std::vector<AttributeInfo> run_root_attributes();
+
 // A run file read back (compare, sweep, summary, claims, regress): what RunFileParts asked for.
 struct RunFileData {
+  RunRoot root;  // the declared root attributes (always read)
   std::map<std::string, std::string> attributes;  // every string attribute of the root
   std::map<std::string, double> numbers;          // every numeric scalar attribute of the root
   // Series (parts.series): every dataset under /series, by its width.
@@ -106,6 +136,7 @@ struct RunFileData {
   std::vector<double> frame_time;  // (F) s
   std::vector<Points> frames;      // (F or 1) frames of (n x 3) m
   std::vector<Points> velocities;  // the same in m/s (NaN rows where a frame came without them)
+  bool has_velocities = false;     // the file has /frames/velocities (read or not)
   // /model/pbd_stiffness (parts.model): the k a pbd run projected each constraint with; empty
   // for the other solvers.
   std::vector<double> pbd_stiffness;

@@ -17,6 +17,7 @@
 #include "core/constraint_functions.hpp"
 #include "metrics/metrics.hpp"
 #include "runfile/output_guard.hpp"
+#include "runfile/run_file.hpp"
 
 namespace pbdbench {
 
@@ -200,6 +201,13 @@ void check_replace(const fs::path& p, bool (*ours)(const fs::path&)) {
 
 }  // namespace
 
+bool is_xdmf_data(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return false;
+  H5::Exception::dontPrint();
+  return is_our_data(path);
+}
+
 fs::path default_xdmf_path(const fs::path& run_file) {
   fs::path p = run_file;
   p.replace_extension(".xdmf");
@@ -215,30 +223,20 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   check_replace(xdmf, is_our_export);
   check_replace(out.data, is_our_data);
 
-  // The run's frames.
+  // The run's frames, through the run file's reader (run_file.hpp).
   const int n = model.particle_count();
-  std::vector<double> times;
-  Points all;  // (F * n) x 3
-  bool velocities = false;
-  try {
-    H5::H5File f(run_file.string(), H5F_ACC_RDONLY);
-    if (!f.nameExists("/frames/time") || !f.nameExists("/frames/positions")) fail(run_file, "has no frames");
-    H5::DataSet t = f.openDataSet("/frames/time");
-    hsize_t nf = 0;
-    t.getSpace().getSimpleExtentDims(&nf);
-    times.resize(nf);
-    if (nf > 0) t.read(times.data(), H5::PredType::NATIVE_DOUBLE);
-    H5::DataSet x = f.openDataSet("/frames/positions");
-    hsize_t dims[3] = {0, 0, 0};
-    x.getSpace().getSimpleExtentDims(dims);
-    if (dims[0] != nf || static_cast<int>(dims[1]) != n)
-      fail(run_file, fmt::format("frames of {} particles, the scene has {}: not this scene's run file", dims[1], n));
-    all.resize(static_cast<Eigen::Index>(nf) * n, 3);
-    if (nf > 0 && n > 0) x.read(all.data(), H5::PredType::NATIVE_DOUBLE);
-    velocities = f.nameExists("/frames/velocities");
-  } catch (const H5::Exception& e) {
-    fail(run_file, "cannot read the frames: " + e.getDetailMsg());
-  }
+  RunFileParts parts;
+  parts.series = false;
+  parts.frames = RunFileParts::Frames::All;
+  parts.velocities = false;  // the XDMF reads them from the run file itself
+  const RunFileData run_data = read_run_file(run_file, parts);
+  const std::vector<double>& times = run_data.frame_time;
+  if (run_data.frames.size() != times.size()) fail(run_file, "has no frames");
+  for (const Points& frame : run_data.frames)
+    if (frame.rows() != n)
+      fail(run_file, fmt::format("frames of {} particles, the scene has {}: not this scene's run file",
+                                 frame.rows(), n));
+  const bool velocities = run_data.has_velocities;
   const hsize_t F = times.size();
   out.frames = static_cast<long>(F);
 
@@ -280,7 +278,7 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   std::vector<double> strain(F * E), edge_err(F * E), area(F * T), tri_err(F * T), volume(F * K), tet_err(F * K);
   auto tri_area = [](const Vec3& a, const Vec3& b, const Vec3& c) { return 0.5 * (b - a).cross(c - a).norm(); };
   for (hsize_t f = 0; f < F; ++f) {
-    const Points x = all.middleRows(static_cast<Eigen::Index>(f) * n, n);
+    const Points& x = run_data.frames[f];
     for (int i = 0; i < n; ++i)
       for (int k = 0; k < 3; ++k)
         displacement[(f * N + static_cast<hsize_t>(i)) * 3 + static_cast<hsize_t>(k)] = x(i, k) - model.rest_positions(i, k);

@@ -41,4 +41,8 @@ XdmfSummary write_xdmf(const std::filesystem::path& run_file, const Model& model
 // The default place of a run file's XDMF: RUN.h5 -> RUN.xdmf.
 std::filesystem::path default_xdmf_path(const std::filesystem::path& run_file);
 
+// Whether `path` is the data file of an export (RUN.viz.h5, which `pbdbench run` writes beside
+// the run file): commands that take many run files (`summary results/mine/*.h5`) pass over it.
+bool is_xdmf_data(const std::filesystem::path& path);
+
 }  // namespace pbdbench

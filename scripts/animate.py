@@ -105,7 +105,17 @@ class Panel:
         self.tets = np.asarray(viz.get("tets", np.zeros((0, 4), int)))
         self.tris = np.asarray(viz.get("triangles", np.zeros((0, 3), int)))
         self.edges = np.asarray(viz.get("edges", np.zeros((0, 2), int)))
-        self.faces = PolyCollection([], cmap=cmap, norm=norm, edgecolor="k", linewidth=0.1, zorder=2)
+        # Faces (tets, else triangles) carry the colour when the field has values on them; where
+        # it has none (a cloth's triangles carry no constraint: their constraint_error is NaN),
+        # the faces are drawn plain and the edges carry the colour instead.
+        face_kind = "tet" if len(self.tets) else ("triangle" if len(self.tris) else None)
+        self.face_coloured = face_kind is not None and self.has_values(face_kind)
+        self.lines_drawn = bool(len(self.edges)) and (
+            face_kind is None or (not self.face_coloured and self.has_values("edge")))
+        if face_kind is None or self.face_coloured:
+            self.faces = PolyCollection([], cmap=cmap, norm=norm, edgecolor="k", linewidth=0.1, zorder=2)
+        else:
+            self.faces = PolyCollection([], facecolor="0.92", edgecolor="0.7", linewidth=0.1, zorder=2)
         ax.add_collection(self.faces)
         self.lines = LineCollection([], cmap=cmap, norm=norm, linewidth=1.5, zorder=3)
         ax.add_collection(self.lines)
@@ -113,6 +123,13 @@ class Panel:
         self.pinned = ax.plot([], [], "s", color="tab:red", markersize=3, zorder=5)[0]
         self.pinned_mask = np.asarray(viz.get("pinned", []), dtype=float) > 0
         del i, j
+
+    def has_values(self, kind):
+        """Whether the field has a value (not NaN) on some cell of this kind in some frame."""
+        if self.field is None:
+            return True
+        v = self.viz.get(dict(zip(("edge", "triangle", "tet"), FIELDS[self.field]))[kind])
+        return v is not None and bool(np.isfinite(np.asarray(v, dtype=float)).any())
 
     def cell_values(self, kind, f, n):
         if self.field is None:
@@ -136,8 +153,9 @@ class Panel:
             values.append(self.cell_values("triangle", f, len(self.tris)))
         if polys:
             self.faces.set_verts(list(np.concatenate(polys)))
-            self.faces.set_array(np.ma.masked_invalid(np.concatenate(values)))
-        if len(self.edges) and not len(self.tris) and not len(self.tets):
+            if self.face_coloured:
+                self.faces.set_array(np.ma.masked_invalid(np.concatenate(values)))
+        if self.lines_drawn:
             self.lines.set_segments(list(p[self.edges]))
             self.lines.set_array(np.ma.masked_invalid(self.cell_values("edge", f, len(self.edges))))
         self.points.set_data(p[:, 0], p[:, 1])

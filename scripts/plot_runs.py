@@ -299,7 +299,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     runs = []
-    for path in args.runs:
+    for path in runfile.without_viz(args.runs, "plot_runs.py"):
         try:
             runs.append(runfile.load(path, frames=False, model=False))
         except runfile.RunFileError as e:

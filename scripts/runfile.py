@@ -25,12 +25,14 @@ going, or killed) loads like any other: its series end at the writer's last flus
 Depends on numpy and h5py only; runs under /usr/bin/python3 (Python 3.11: tomllib).
 """
 import os
+import sys
 import tomllib
 
 import h5py
 import numpy as np
 
-__all__ = ["Run", "Compare", "Converge", "Regress", "RunFileError", "load", "load_viz",
+__all__ = ["Run", "Compare", "Converge", "Regress", "RunFileError", "load", "load_viz", "is_viz",
+           "without_viz",
            "load_compare", "load_converge", "load_regress", "load_any", "kind", "status_of",
            "label", "differing_keys", "config_value", "format_value"]
 
@@ -225,6 +227,29 @@ def label(run, keys):
         shown = short if last.count(short) == 1 else k
         parts.append(f"{shown}={format_value(config_value(run, k, '?'))}")
     return ", ".join(parts)
+
+
+def is_viz(path):
+    """Whether the file is a run's ParaView data file (RUN.viz.h5: its root attribute
+    `pbdbench_viz`), which `pbdbench run` writes beside the run file."""
+    try:
+        with h5py.File(os.fspath(path), "r") as f:
+            return "pbdbench_viz" in f.attrs
+    except OSError:
+        return False
+
+
+def without_viz(paths, program):
+    """`paths` without the ParaView data files among them (a folder's *.h5), each passed over
+    with a note on stderr naming `program`."""
+    kept = []
+    for p in paths:
+        if is_viz(p):
+            print(f"{program}: passed over {p} (the ParaView fields of a run's export, not a run file)",
+                  file=sys.stderr)
+        else:
+            kept.append(p)
+    return kept
 
 
 def load_viz(path):

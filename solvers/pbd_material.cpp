@@ -50,8 +50,9 @@ double bending_inverse_mass_sum(const Model& model, const Constraint& c) {
 
 std::string number(double v) { return fmt::format("{:.4g}", v); }
 
+// "lo .. hi", or one number where the two print the same (rounding differences of one value).
 std::string range(double lo, double hi) {
-  return lo == hi ? number(lo) : number(lo) + " .. " + number(hi);
+  return number(lo) == number(hi) ? number(lo) : number(lo) + " .. " + number(hi);
 }
 
 }  // namespace
@@ -158,10 +159,14 @@ std::string pbd_material_text(const Model& model, const SolverOptions& options, 
   std::string out;
   for (const PbdGroupMaterial& g : pbd_material_summary(model, options, h)) {
     if (!out.empty()) out += '\n';
-    out += fmt::format("{} ({} x {}): k = {}", g.group, g.count, to_string(g.kind), range(g.k_min, g.k_max));
-    if (is_fem_kind(g.kind))
-      out += " (none: pbd has no FEM material and refuses the scene)";
-    else if (g.derived)
+    out += fmt::format("{} ({} x {}): ", g.group, g.count, to_string(g.kind));
+    if (is_fem_kind(g.kind)) {
+      // No k exists: pbd_stiffness's entry for an FEM constraint is never used, pbd refuses.
+      out += "no k (pbd has no stiffness rule for an FEM element's Young's modulus and refuses the scene)";
+      continue;
+    }
+    out += "k = " + range(g.k_min, g.k_max);
+    if (g.derived)
       out += fmt::format(" derived from alpha = {} (Mueller 2007 effective stiffness: k = 1 - (1 + "
                          "h^2 S / alpha)^(-1/n), h = {} s, n = {})",
                          range(g.compliance_min, g.compliance_max), number(h), options.iterations);
@@ -173,6 +178,44 @@ std::string pbd_material_text(const Model& model, const SolverOptions& options, 
   return out;
 }
 
+namespace {
+
+// What a solver other than pbd uses for one group of FEM constraints: the reference solvers
+// (ref-*) the element's energy (reference/energy.cpp: an FEM constraint stands for its element);
+// the others (xpbd, force-symplectic, global-*) the constraint's compliance, a matrix for the
+// strain kinds (core/constraint_kind.hpp); pbd-seed none (it refuses FEM scenes).
+std::string fem_material_text(const Model& model, const PbdGroupMaterial& g, const std::string& solver) {
+  if (solver == "pbd-seed") return "none (pbd-seed has no FEM material and refuses the scene)";
+  double mu_lo = std::numeric_limits<double>::infinity(), mu_hi = -mu_lo, la_lo = mu_lo, la_hi = -mu_lo;
+  for (const Constraint& c : model.constraints)
+    if (c.kind == g.kind && model.group_names.size() > c.group && model.group_names[c.group] == g.group &&
+        c.element >= 0 && static_cast<std::size_t>(c.element) < model.elements.size()) {
+      const FemElement& e = model.elements[static_cast<std::size_t>(c.element)];
+      mu_lo = std::min(mu_lo, e.mu);
+      mu_hi = std::max(mu_hi, e.mu);
+      la_lo = std::min(la_lo, e.lambda);
+      la_hi = std::max(la_hi, e.lambda);
+    }
+  const std::string moduli = mu_lo <= mu_hi ? fmt::format("mu = {} Pa, lambda = {} Pa", range(mu_lo, mu_hi),
+                                                          range(la_lo, la_hi))
+                                            : std::string("the element's mu and lambda");
+  if (solver.rfind("ref-", 0) == 0)
+    return "the element's energy V Psi(F), " + moduli + " (from E and nu; not the constraint's alpha = " +
+           range(g.compliance_min, g.compliance_max) + ")";
+  const std::string alpha = range(g.compliance_min, g.compliance_max);
+  switch (g.kind) {
+    case ConstraintKind::FemDeviatoric:
+      return "alpha = " + alpha + " = 1 / (mu V), " + moduli + " from E and nu";
+    case ConstraintKind::FemHydrostatic:
+      return "alpha = " + alpha + " = 1 / (lambda_snh V), " + moduli + " from E and nu";
+    default:
+      return "the compliance matrix K^-1 / V of the element (" + moduli +
+             " from E and nu); alpha = " + alpha + " is its deviatoric entry 1 / (2 mu V)";
+  }
+}
+
+}  // namespace
+
 std::string material_text(const Model& model, const SolverOptions& options, double dt) {
   if (options.name == "pbd") return pbd_material_text(model, options, dt / options.substeps);
   const bool seed = options.name == "pbd-seed";
@@ -181,9 +224,7 @@ std::string material_text(const Model& model, const SolverOptions& options, doub
     if (!out.empty()) out += '\n';
     out += fmt::format("{} ({} x {}): ", g.group, g.count, to_string(g.kind));
     if (is_fem_kind(g.kind)) {
-      out += seed ? "none (pbd-seed has no FEM material and refuses the scene)"
-                  : "alpha = " + range(g.compliance_min, g.compliance_max) +
-                        " from the element's Young's modulus and Poisson ratio";
+      out += fem_material_text(model, g, options.name);
       continue;
     }
     if (seed) {

@@ -3,6 +3,7 @@
 // docs/scenarios.md is a hand-written introduction, a marker line, and schema_markdown(). After a
 // schema change, regenerate it with
 //   PBDBENCH_UPDATE_DOCS=1 test_config --gtest_filter=Describe.DocsContainTheSchema
+#include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <fstream>
@@ -255,6 +256,35 @@ TEST(Describe, KeysTheSolverDoesNotReadAreWarnedAbout) {
   ASSERT_EQ(wr.size(), 1u);
   EXPECT_TRUE(contains(wr[0], "solver.iterations (r.toml:3) is set but ref-bdf does not read it "
                               "(an option of pbd-seed, pbd, xpbd)"));
+}
+
+// An FEM scene: what each solver uses for the FEM groups, said truthfully. pbd has no k for
+// them (it refuses the scene: no "k = 1" is shown); xpbd projects the constraints with their
+// compliances 1 / (mu V) and 1 / (lambda_snh V); the reference solvers use the element's energy.
+TEST(Describe, FemGroupsSayWhatEachSolverUses) {
+  const std::string block =
+      "[scene]\nkind = \"tet_block\"\ncells = [2, 1, 1]\nsize = [0.2, 0.1, 0.1]\nedges = false\n"
+      "volumes = false\nmaterial = \"stable_neo_hookean\"\nyoungs_modulus = 1e6\npoisson_ratio = 0.3\n";
+  auto describe = [&](const char* solver) {
+    const Config c = load_text(block, "fem.toml", sets({std::string("solver.name=") + solver}));
+    std::string flat;  // the words, with the 100-column line breaks taken out
+    std::istringstream lines(describe_config(c, false, 100));
+    for (std::string line; std::getline(lines, line);) {
+      EXPECT_LE(line.size(), 100u) << line;
+      flat += " " + line.substr(std::min(line.find_first_not_of(' '), line.size()));
+    }
+    return flat;
+  };
+  const std::string pbd = describe("pbd"), xpbd = describe("xpbd"), ref = describe("ref-be");
+  EXPECT_TRUE(contains(pbd, "x fem_deviatoric): no k (pbd has no stiffness rule")) << pbd;
+  EXPECT_TRUE(contains(pbd, "x fem_hydrostatic): no k")) << pbd;
+  EXPECT_FALSE(contains(pbd, "k = 1")) << pbd;
+  EXPECT_TRUE(contains(pbd, "pbd refuses this scene")) << pbd;
+  EXPECT_TRUE(contains(xpbd, "x fem_deviatoric): alpha = ")) << xpbd;
+  EXPECT_TRUE(contains(xpbd, "= 1 / (mu V), mu = 3.846e+05 Pa, lambda = 5.769e+05 Pa from E and nu")) << xpbd;
+  EXPECT_TRUE(contains(xpbd, "= 1 / (lambda_snh V)")) << xpbd;
+  EXPECT_TRUE(contains(ref, "x fem_deviatoric): the element's energy V Psi(F), mu = 3.846e+05 Pa")) << ref;
+  EXPECT_FALSE(contains(ref, "): alpha = ")) << ref;
 }
 
 }  // namespace

@@ -166,6 +166,20 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
   EXPECT_EQ(r.parts[0].truth, "the closed form g t^2 / 2");
   EXPECT_NE(md.find("- Judged against: the closed form g t^2 / 2\n"), std::string::npos) << md;
   EXPECT_EQ(md.find("- Judged against: \n"), std::string::npos) << md;
+  // A run with warnings (metrics/health.hpp): counted in the runs' table, its first warning
+  // under the table (claims and paper reports alike).
+  EXPECT_EQ(md.find("Warnings (what a reader would call a failure"), std::string::npos) << md;
+  ClaimResult warned = r;
+  ASSERT_FALSE(warned.runs.empty());
+  ASSERT_FALSE(warned.runs[0].timing_only);
+  warned.runs[0].warned = 2;
+  warned.runs[0].first_warning = "volume @1 (t = 0.01667 s): tet volume lost 38.2 %";
+  const std::string wmd = report_markdown({warned}, ctx);
+  EXPECT_NE(wmd.find("| 2 |\n"), std::string::npos) << wmd;
+  EXPECT_NE(wmd.find("Warnings (what a reader would call a failure"), std::string::npos) << wmd;
+  EXPECT_NE(wmd.find("- " + warned.runs[0].name + ": volume @1 (t = 0.01667 s): tet volume lost 38.2 %"),
+            std::string::npos)
+      << wmd;
   const std::string js = results_json({r}, ctx, dir);
   EXPECT_NE(js.find("\"truth\": \"the closed form g t^2 / 2\""), std::string::npos) << js;
   EXPECT_NE(js.find("\"runs/S9.1/xpbd-000.h5\""), std::string::npos) << js;

@@ -298,11 +298,29 @@ class CliTest(unittest.TestCase):
         r = pbdbench("describe", "spring", "--kind")
         self.assertIn("Scene kind 'spring'", r.stdout)
         self.assertEqual(pbdbench("describe", "no_such_thing").returncode, 2)
+        # --solver as for run: the FEM groups say what pbd uses (nothing: it refuses) and what
+        # xpbd uses (the compliances), not a "k = 1" pbd never applies.
+        r = pbdbench("describe", "cantilever_fem", "--solver", "pbd")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("solver pbd", r.stdout)
+        self.assertIn("fem_deviatoric): no k (pbd has no stiffness rule", r.stdout)
+        self.assertNotIn("k = 1", r.stdout)
+        self.assertIn("pbd refuses this scene", r.stdout)
+        r = pbdbench("describe", "cantilever_fem", "--solver", "xpbd")
+        self.assertIn("fem_deviatoric): alpha = ", r.stdout)
         out = os.path.join(self.dir, "a.h5")
         self.assertEqual(pbdbench("run", "spring", "--out", out, "--quiet").returncode, 0)
         r = pbdbench("summary", out)
         self.assertEqual(r.returncode, 0)
         self.assertIn("complete", r.stdout)
+        # The README's `summary results/mine/*.h5`: the export's data file beside the run file
+        # (a.viz.h5, written by run) is passed over, not refused.
+        viz = os.path.join(self.dir, "a.viz.h5")
+        self.assertTrue(os.path.isfile(viz))
+        r = pbdbench("summary", out, viz)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("passed over " + viz, r.stderr)
+        self.assertEqual([l.split()[0] for l in r.stdout.splitlines()[3:] if l.strip()], ["a"], r.stdout)
         r = pbdbench("series", "--markdown")
         with open(os.path.join(SOURCE, "results", "README.md")) as f:
             self.assertIn(r.stdout.strip(), f.read())

@@ -154,6 +154,24 @@ TEST(runfile_compare_file, RoundTrip) {
   }
 }
 
+// The root attributes are compare_root_attributes() (compare_file.cpp's tables and the
+// provenance), and the reader returns the provenance.
+TEST(runfile_compare_file, RootAttributesAreTheDeclaredTable) {
+  const fs::path path = temp_dir() / "compare.h5";
+  write_compare_file(path, sample_result(true));
+  const CompareFile f = read_compare_file(path);
+  test::expect_declared(f, compare_root_attributes());
+  for (const char* key : {"file", "solver", "scenario", "status", "config", "git_commit"}) {
+    EXPECT_TRUE(f.attributes.count(std::string("run_") + key)) << key;
+    EXPECT_TRUE(f.attributes.count(std::string("reference_") + key)) << key;
+  }
+  EXPECT_EQ(f.provenance.git_commit, f.attributes.at("git_commit"));
+  EXPECT_EQ(f.provenance.created, f.attributes.at("created"));
+  EXPECT_EQ(f.provenance.cxx_flags, f.attributes.at("cxx_flags"));
+  EXPECT_FALSE(f.provenance.compiler.empty());
+  test::expect_readme_carries(attributes_markdown(compare_root_attributes()), "compare_root_attributes()");
+}
+
 TEST(runfile_compare_file, RefusesOtherFiles) {
   const fs::path dir = temp_dir();
   test::expect_error([&] { read_compare_file(dir / "missing.h5"); }, {"missing.h5"});

@@ -109,6 +109,23 @@ TEST(runfile_converge_file, RoundTrip) {
   EXPECT_TRUE(f.attributes.count("git_commit"));
 }
 
+// The root attributes are converge_root_attributes() (converge_file.cpp's table and the
+// provenance), and the reader returns the provenance.
+TEST(runfile_converge_file, RootAttributesAreTheDeclaredTable) {
+  const fs::path path = temp_dir() / "converge.h5";
+  write_converge_file(path, sample_result());
+  const ConvergeFile f = read_converge_file(path);
+  test::expect_declared(f, converge_root_attributes());
+  EXPECT_EQ(f.provenance.git_commit, f.attributes.at("git_commit"));
+  EXPECT_EQ(f.provenance.created, f.attributes.at("created"));
+  EXPECT_FALSE(f.provenance.build_type.empty());
+  std::vector<std::string> method;
+  for (const AttributeInfo& a : converge_method_attributes()) method.push_back(a.name);
+  EXPECT_EQ(method, (std::vector<std::string>{"method", "iteration_kind", "xpbd", "converged", "final_error"}));
+  test::expect_readme_carries(attributes_markdown(converge_root_attributes()), "converge_root_attributes()");
+  test::expect_readme_carries(attributes_markdown(converge_method_attributes()), "converge_method_attributes()");
+}
+
 TEST(runfile_converge_file, RefusesOtherFiles) {
   const fs::path dir = temp_dir();
   test::expect_error([&] { read_converge_file(dir / "missing.h5"); }, {"missing.h5"});

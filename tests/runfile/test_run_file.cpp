@@ -15,6 +15,8 @@
 #include <fstream>
 #include <regex>
 #include <set>
+#include <sstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -334,6 +336,90 @@ TEST(runfile_file, RoundTrip) {
 
   // No temporary file is left behind.
   EXPECT_FALSE(fs::exists(path.string() + ".tmp"));
+}
+
+// The root attributes are declared once (run_file.cpp kRoot, then the provenance):
+// every attribute the writer writes, in a run that goes through warnings and an explosion, is in
+// run_root_attributes() with the HDF5 type the table gives, every row of the table is written,
+// the reader returns each in RunFileData::root, and results/README.md carries the table.
+TEST(runfile_file, RootAttributesAreTheDeclaredTable) {
+  const fs::path path = temp_dir() / "run.h5";
+  const Model m = test::fixture_model();
+  RunHeader h = fixture_header();
+  h.material = "bars (3 x distance): alpha = 0.001";
+  {
+    RunFileWriter w(path, h, m, 0.0);
+    append_rows(w, m, 0, 5);
+    w.set_warnings({"energy_gain @4 (t = 0.04 s): 3 J", "volume @2 (t = 0.02 s): lost 30 %"});
+    w.finish(RunStatus::Exploded, "max speed 2000 m/s", 4, 0.25, 4, 0.04);
+  }
+  const std::vector<AttributeInfo> table = run_root_attributes();
+  std::map<std::string, AttributeType> declared;
+  for (const AttributeInfo& a : table) {
+    EXPECT_TRUE(declared.emplace(a.name, a.type).second) << a.name << " is declared twice";
+    EXPECT_FALSE(a.doc.empty()) << a.name;
+  }
+  // Every root attribute of the file, with its HDF5 type class.
+  std::map<std::string, AttributeType> written;
+  {
+    H5Handle f{H5Fopen(path.string().c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+    ASSERT_GE(f.id, 0);
+    auto collect = [](hid_t obj, const char* name, const H5A_info_t*, void* out) -> herr_t {
+      H5Handle attr{H5Aopen(obj, name, H5P_DEFAULT), H5Aclose};
+      H5Handle type{H5Aget_type(attr.id), H5Tclose};
+      const H5T_class_t c = H5Tget_class(type.id);
+      (*static_cast<std::map<std::string, AttributeType>*>(out))[name] =
+          c == H5T_STRING ? AttributeType::Text : c == H5T_INTEGER ? AttributeType::Integer : AttributeType::Real;
+      return 0;
+    };
+    hsize_t index = 0;
+    ASSERT_GE(H5Aiterate2(f.id, H5_INDEX_NAME, H5_ITER_INC, &index, collect, &written), 0);
+  }
+  for (const auto& [name, type] : written) {
+    ASSERT_TRUE(declared.count(name)) << "the writer writes the root attribute " << name
+                                      << ", which run_root_attributes() does not declare";
+    EXPECT_EQ(to_string(type), std::string(to_string(declared.at(name)))) << name;
+  }
+  for (const AttributeInfo& a : table) EXPECT_TRUE(written.count(a.name)) << a.name << " is not written";
+
+  // The reader returns each.
+  const RunFileData d = read_run_file(path, false);
+  const RunRoot& r = d.root;
+  EXPECT_EQ(r.format_version, 1);
+  EXPECT_EQ(r.status, "exploded");
+  EXPECT_EQ(r.status_reason, "max speed 2000 m/s");
+  EXPECT_EQ(r.scenario, h.scenario);
+  EXPECT_EQ(r.scenario_file, h.scenario_file);
+  EXPECT_EQ(r.solver, h.solver);
+  EXPECT_EQ(r.config, h.config);
+  EXPECT_EQ(r.dt, h.dt);
+  EXPECT_EQ(r.steps_planned, h.steps_planned);
+  EXPECT_EQ(r.material, h.material);
+  EXPECT_EQ(r.steps_completed, 4);
+  EXPECT_EQ(r.wall_time, 0.25);
+  EXPECT_EQ(r.exploded_step, 4);
+  EXPECT_EQ(r.exploded_time, 0.04);
+  EXPECT_EQ(r.warnings, "energy_gain @4 (t = 0.04 s): 3 J\nvolume @2 (t = 0.02 s): lost 30 %");
+  EXPECT_EQ(r.warning_count, 2);
+  EXPECT_TRUE(std::regex_match(r.provenance.created, std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)")));
+  const BuildInfo& b = build_info();
+  EXPECT_EQ(r.provenance.pbdbench_version, b.version);
+  EXPECT_EQ(r.provenance.git_commit, b.git_commit);
+  EXPECT_EQ(r.provenance.compiler, b.compiler);
+  EXPECT_EQ(r.provenance.build_type, b.build_type);
+  EXPECT_EQ(r.provenance.cxx_flags, b.cxx_flags);
+  // ... and each agrees with the raw maps (the same attributes, read without the table).
+  for (const AttributeInfo& a : table) {
+    if (a.type == AttributeType::Text)
+      EXPECT_TRUE(d.attributes.count(a.name)) << a.name;
+    else
+      EXPECT_TRUE(d.numbers.count(a.name)) << a.name;
+  }
+  EXPECT_EQ(d.attributes.at("material"), r.material);
+  EXPECT_EQ(d.numbers.at("exploded_step"), static_cast<double>(r.exploded_step));
+
+  // The documentation carries the table verbatim.
+  test::expect_readme_carries(attributes_markdown(table), "run_root_attributes()");
 }
 
 TEST(runfile_file, WithoutSeries) {

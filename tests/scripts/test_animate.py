@@ -68,6 +68,35 @@ class Animate(unittest.TestCase):
         self.assertEqual(p.returncode, 0, p.stderr)
         self.assertEqual(int(p.stdout.strip()), 16, "0.25 s at a frame per 1/60 s, and the initial frame")
 
+    def test_the_field_colours_the_cells_that_carry_it(self):
+        # A cloth's triangles carry no constraint (their constraint_error is NaN throughout): its
+        # edges carry the colour. The FEM bar's tets carry it on their faces.
+        sys.path.insert(0, SCRIPTS)
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        import animate
+        import runfile
+        cloth = os.path.join(self.dir, "cloth.h5")
+        r = run(BIN, "run", os.path.join(SCENARIOS, "hanging_cloth.toml"), "--set", "scene.resolution=[6, 6]",
+                "--set", "time.duration=0.1", "--out", cloth, "--quiet")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        norm = matplotlib.colors.Normalize(0.0, 1.0)
+        for path, faces in ((cloth, False), (self.xpbd, True)):
+            run_ = runfile.load(path)
+            viz = animate.viz_of(path, BIN)
+            fig, ax = plt.subplots()
+            panel = animate.Panel(ax, run_, viz, (0, 1), "constraint_error", norm, "viridis", "label")
+            panel.draw(run_.frame_time[-1])
+            self.assertEqual(panel.face_coloured, faces, path)
+            if faces:
+                self.assertTrue(np.isfinite(np.ma.filled(panel.faces.get_array(), np.nan)).any(), path)
+            else:
+                self.assertTrue(panel.lines_drawn, path)
+                self.assertEqual(len(panel.lines.get_segments()), len(viz["edges"]))
+                self.assertTrue(np.isfinite(np.ma.filled(panel.lines.get_array(), np.nan)).any(), path)
+            plt.close(fig)
+
     def test_sparse_frames_say_how_to_ask_for_more_and_bad_names_are_refused(self):
         sparse = os.path.join(self.dir, "sparse.h5")
         r = run(BIN, "run", os.path.join(SCENARIOS, "hanging_chain.toml"), "--set", "time.duration=0.5",

@@ -242,6 +242,21 @@ class PlotRunsTest(unittest.TestCase):
         self.assertIn(out, r.stdout)
         assert_png(self, out)
 
+    def test_export_data_files_are_passed_over(self):
+        # `plot_runs.py results/mine/*.h5` after `pbdbench run`: RUN.viz.h5 lies beside RUN.h5.
+        import h5py
+        viz = os.path.join(self.dir, "pbd.viz.h5")
+        with h5py.File(viz, "w") as f:
+            f.attrs["pbdbench_viz"] = "pbd.h5"
+            f["pinned"] = np.zeros(3)
+        self.assertTrue(runfile.is_viz(viz))
+        self.assertFalse(runfile.is_viz(self.pbd))
+        out = os.path.join(self.dir, "with_viz.png")
+        r = script("plot_runs.py", self.pbd, viz, "-o", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("passed over " + viz, r.stderr)
+        assert_png(self, out)
+
     def test_chosen_series(self):
         out = os.path.join(self.dir, "chosen.png")
         r = script("plot_runs.py", self.pbd, "--series",

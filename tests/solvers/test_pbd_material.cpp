@@ -234,14 +234,22 @@ TEST(PbdMaterial, TheStiffnessFollowsTheSubstep) {
   EXPECT_NEAR(pbd_stiffness(m, o, S, 0.02)[0], 1.0 - std::pow(0.7, 0.2), 1e-15);
 }
 
-TEST(PbdMaterial, FemIsRefusedNamingTheKeyToSet) {
+// Unit right-angled tets of 1 kg particles at x = 0, 2, 4, ... (one per entry of `count`), of
+// stable neo-Hookean FEM elements (E = 1e5 Pa, nu = 0.3).
+Model fem_tets(int count) {
   Model m = empty_model();
-  add_particle(m, Vec3(0, 0, 0), 1.0);
-  add_particle(m, Vec3(1, 0, 0), 1.0);
-  add_particle(m, Vec3(0, 1, 0), 1.0);
-  add_particle(m, Vec3(0, 0, 1), 1.0);
-  m.tets.push_back({0, 1, 2, 3});
+  for (int k = 0; k < count; ++k) {
+    const Vec3 o(2.0 * k, 0, 0);
+    const int a = add_particle(m, o, 1.0);
+    for (const Vec3& d : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)}) add_particle(m, o + d, 1.0);
+    m.tets.push_back({a, a + 1, a + 2, a + 3});
+  }
   fem::add_fem_elements(m, m.tets, Material::StableNeoHookean, 1e5, 0.3);
+  return m;
+}
+
+TEST(PbdMaterial, FemIsRefusedNamingTheKeyToSet) {
+  const Model m = fem_tets(1);
   EXPECT_NE(pbd_material_problem(m).find("scene.material"), std::string::npos) << pbd_material_problem(m);
   try {
     make_solver(derived("pbd", 5), m);
@@ -249,6 +257,29 @@ TEST(PbdMaterial, FemIsRefusedNamingTheKeyToSet) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("scene.material"), std::string::npos) << e.what();
   }
+}
+
+// The material text of FEM groups says what each solver uses: no k under pbd (it refuses), the
+// compliances 1 / (mu V) and 1 / (lambda_snh V) under xpbd, the element's energy under a
+// reference; values equal to the shown digits print once.
+TEST(PbdMaterial, FemGroupsSayWhatEachSolverUses) {
+  Model m = fem_tets(2);
+  for (Constraint& c : m.constraints)
+    if (c.element == 0) c.compliance *= 1.0 + 1e-12;  // the same to 4 digits as the other element's
+  const std::string pbd = material_text(m, derived("pbd", 10), 0.01);
+  EXPECT_NE(pbd.find("x fem_deviatoric): no k (pbd has no stiffness rule"), std::string::npos) << pbd;
+  EXPECT_EQ(pbd.find("k ="), std::string::npos) << pbd;
+  const std::string xpbd = material_text(m, derived("xpbd", 10), 0.01);
+  const double mu = 1e5 / 2.6, V = 1.0 / 6.0;
+  char dev[64];
+  std::snprintf(dev, sizeof dev, "alpha = %.4g = 1 / (mu V)", 1.0 / (mu * V));
+  EXPECT_NE(xpbd.find(dev), std::string::npos) << xpbd;
+  EXPECT_NE(xpbd.find("= 1 / (lambda_snh V)"), std::string::npos) << xpbd;
+  EXPECT_EQ(xpbd.find(" .. "), std::string::npos) << xpbd;
+  const std::string ref = material_text(m, derived("ref-be", 10), 0.01);
+  EXPECT_NE(ref.find("x fem_deviatoric): the element's energy V Psi(F), mu = 3.846e+04 Pa"), std::string::npos)
+      << ref;
+  EXPECT_NE(material_text(m, derived("pbd-seed", 10), 0.01).find("none (pbd-seed"), std::string::npos);
 }
 
 TEST(PbdMaterial, SummaryNamesTheRuleOrTheOverride) {
