@@ -320,7 +320,9 @@ class CliTest(unittest.TestCase):
         r = pbdbench("summary", out, viz)
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIn("passed over " + viz, r.stderr)
-        self.assertEqual([l.split()[0] for l in r.stdout.splitlines()[3:] if l.strip()], ["a"], r.stdout)
+        table = r.stdout.split("Why the steps stopped")[0]  # the rows, not the notes under them
+        self.assertEqual([l.split()[0] for l in table.splitlines()[3:] if l.strip()], ["a"], r.stdout)
+        self.assertIn("a: ", r.stdout.split("Why the steps stopped")[1])
         r = pbdbench("series", "--markdown")
         with open(os.path.join(SOURCE, "results", "README.md")) as f:
             self.assertIn(r.stdout.strip(), f.read())
