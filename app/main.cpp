@@ -273,7 +273,10 @@ int cmd_describe(const std::string& what, const std::vector<std::string>& sets, 
     return kExitOk;
   }
   const config::Config cfg = config::load(what, parse_overrides(sets));
-  std::cout << config::describe_config(cfg, all, 100);
+  // The catalogue, above config/, says which options the solver reads.
+  const SolverEntry* solver = find_solver(cfg.get_string("solver.name"));
+  std::cout << config::describe_config(cfg, all, 100,
+                                       solver ? std::optional(solver->family) : std::nullopt);
   return kExitOk;
 }
 

@@ -30,23 +30,13 @@ std::unique_ptr<Solver> make_xpbd(const SolverOptions& o, const Model& m) { retu
 
 }  // namespace
 
-const char* to_string(SolverFamily family) {
-  switch (family) {
-    case SolverFamily::Pbd: return "pbd";
-    case SolverFamily::Force: return "force";
-    case SolverFamily::Reference: return "reference";
-    case SolverFamily::Global: return "global";
-  }
-  return "unknown";
-}
-
 const std::vector<SolverEntry>& solver_catalog() {
   static const std::vector<SolverEntry> catalog = {
       // name, doc, family, what it can run, factory
       {"pbd-seed",
        "the seed article's PBD listing to the letter (float, its departures D1-D11 switchable "
        "with solver.seed.fixes)",
-       SolverFamily::Pbd, Can::of({&C::contacts, &C::rigid, &C::relaxation}),
+       SolverFamily::PbdSeed, Can::of({&C::contacts, &C::rigid, &C::relaxation}),
        make_pbd_seed_solver},
       {"pbd", "Position Based Dynamics, Mueller et al. 2007, Algorithm 1, with substeps",
        SolverFamily::Pbd,
@@ -55,7 +45,7 @@ const std::vector<SolverEntry>& solver_catalog() {
       {"xpbd",
        "Extended Position Based Dynamics, Macklin et al. 2016, with substeps "
        "(Macklin et al. 2019)",
-       SolverFamily::Pbd,
+       SolverFamily::Xpbd,
        Can::of({&C::contacts, &C::rigid, &C::fem, &C::float_precision, &C::threads,
                 &C::multipliers, &C::relaxation}),
        make_xpbd},
@@ -114,7 +104,7 @@ std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& m
     for (const SolverEntry& e : solver_catalog()) names += (names.empty() ? "" : ", ") + e.name;
     throw std::invalid_argument("solver.name = '" + options.name + "' is not one of " + names);
   }
-  const std::string problem = options.validate();
+  const std::string problem = options.validate(entry->family);  // the options it reads
   if (!problem.empty()) throw std::invalid_argument(problem);
   return entry->make(options, model);
 }

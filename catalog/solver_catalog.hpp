@@ -1,9 +1,11 @@
 // The solver catalogue: one table of every solver, {name, doc, family, capabilities, factory}
 // (catalog/solver_catalog.cpp). It composes the families from above: solvers/ (the PBD family
 // and force-symplectic) and reference/ (the reference integrators and the global solvers) both
-// build on solver_api/ and neither knows the other; only this table names them all. config/
-// reads it to check solver.name (with the file and line of a bad one), the harness to build the
-// run's solver, the command line to list it.
+// build on solver_api/ and neither knows the other; only this table names them all. It stands
+// above config/, which reads only the option rows of solver_api/ and links no solver library:
+// the harness reads the table to build the run's solver (a name of no row is refused there, with
+// the file and line of solver.name), the command line to list it and to say which options the
+// scenario's solver reads (describe, the warnings of config::unread_solver_keys).
 //
 //   auto solver = make_solver(options, model);      // precomputation (colourings, ...)
 //   StepReport r = solver->step(model, state, dt);  // advance state by dt
@@ -22,17 +24,6 @@
 
 namespace pbdbench {
 
-// The family a solver belongs to: which solver.<family>.* option table it reads.
-enum class SolverFamily : std::uint8_t {
-  Pbd,        // pbd-seed, pbd, xpbd: projections in substeps (solver.pbd.*, solver.xpbd.*,
-              // solver.seed.*)
-  Force,      // force-symplectic (solver.force.*)
-  Reference,  // ref-*: SUNDIALS integrators of the scene's energy (solver.ref.*)
-  Global,     // global-*: every step the converged global projection (solver.global.*)
-};
-
-const char* to_string(SolverFamily family);  // "pbd", "force", "reference", "global"
-
 // What a solver can run, instead of name checks in config/ and harness/.
 struct SolverCapabilities {
   bool contacts = false;      // colliders and particle contact (without solver.ref.ignore_colliders)
@@ -50,7 +41,7 @@ using SolverFactory = std::unique_ptr<Solver> (*)(const SolverOptions& options, 
 struct SolverEntry {
   std::string name;  // solver.name: "pbd-seed", "pbd", "xpbd", "ref-bdf", ...
   std::string doc;   // one line
-  SolverFamily family = SolverFamily::Pbd;
+  SolverFamily family = SolverFamily::Xpbd;  // solver_api/options.hpp: the options it reads
   SolverCapabilities can;
   SolverFactory make = nullptr;
 };
@@ -63,7 +54,7 @@ const std::vector<SolverEntry>& solver_catalog();
 const SolverEntry* find_solver(const std::string& name);
 
 // Builds the solver named options.name for this model. Throws std::invalid_argument naming the
-// field when options.validate() fails or the name is unknown, and whatever the solver's factory
+// field when options.validate(its family) fails or the name is unknown, and whatever the solver's factory
 // throws for a model it cannot run (naming what).
 std::unique_ptr<Solver> make_solver(const SolverOptions& options, const Model& model);
 

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <variant>
@@ -152,6 +153,16 @@ Scene build_scene(const Config& config);
 
 SolverOptions solver_options(const Config& config);
 
+// The solver keys the scenario sets (in its file or with --set) that `family`, the family of its
+// solver (the catalogue's, catalog/, above), does not read (solver_api/options.hpp,
+// OptionRow::families): one line each naming the key, where it was set, the solver and the
+// families that read it:
+//   "solver.seed.fixes (s.toml:7) is set but pbd does not read it (an option of pbd-seed)"
+// Such a key is accepted, as `describe` hides it rather than refusing it (an experiment may set
+// one family's options for all its runs and switch solver.name in one of them); `pbdbench run`
+// and `describe` show these lines as warnings.
+std::vector<std::string> unread_solver_keys(const Config& config, SolverFamily family);
+
 struct RunOptions {
   double dt = 1.0 / 60.0;  // time.dt: s
   double duration = 1.0;   // time.duration: s; steps = round(duration / dt)
@@ -173,10 +184,13 @@ RunOptions run_options(const Config& config);
 std::string describe_keys(const std::string& scene_kind);
 std::string describe_config(const Config& config);
 // The same for a reader, in `width` columns (each key on one line, its doc wrapped below it):
-// the solver's own keys only (solver.<family>.* of other solvers and the *_stiffness or
-// *_compliance keys the solver does not read are hidden unless `all`), then, per constraint
-// group of the built scene, the material value the chosen solver uses.
-std::string describe_config(const Config& config, bool all, std::size_t width);
+// the solver's own keys only (the solver keys its `family` does not read, the catalogue's
+// family of solver.name, and the *_stiffness or *_compliance keys the solver does not read are
+// hidden unless `all`; every solver key is shown without a family), the warnings of
+// unread_solver_keys, then, per constraint group of the built scene, the material value the
+// chosen solver uses.
+std::string describe_config(const Config& config, bool all, std::size_t width,
+                            std::optional<SolverFamily> family = std::nullopt);
 
 // The scenario files in scenarios_dir() and its subfolders, sorted: name ("hanging_chain",
 // "failures/zero_rest_length"), scene kind, description.

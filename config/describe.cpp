@@ -152,7 +152,8 @@ namespace {
 // Which solver reads a key: "" for every solver, else the family the key belongs to.
 // pbd reads the *_stiffness keys only with solver.pbd.material = "stiffness"; pbd-seed (the seed
 // article's listing) always, and no other solver.
-bool solver_reads(const std::string& solver, const std::string& pbd_material, const std::string& path) {
+bool solver_reads(const std::string& solver, std::optional<SolverFamily> family,
+                  const std::string& pbd_material, const std::string& path) {
   const bool stiffness_reader = solver == "pbd-seed" || (solver == "pbd" && pbd_material == "stiffness");
   const bool pbd_family = solver == "pbd" || solver == "pbd-seed";
   auto ends_with = [&](const char* tail) {
@@ -165,14 +166,9 @@ bool solver_reads(const std::string& solver, const std::string& pbd_material, co
     if (ends_with("_damping") || path == "scene.damping") return !pbd_family;
     return true;
   }
-  const std::pair<const char*, const char*> families[] = {
-      {"solver.pbd.", "pbd"}, {"solver.xpbd.", "xpbd"}, {"solver.force.", "force-symplectic"},
-      {"solver.seed.", "pbd-seed"}, {"solver.ref.", "ref-"}, {"solver.global.", "global-"}};
-  for (const auto& [prefix, family] : families)
-    if (path.rfind(prefix, 0) == 0) {
-      const std::string f(family);
-      return f.back() == '-' ? solver.rfind(f, 0) == 0 : solver == f;
-    }
+  // A solver key: the families its row names (solver_api/options.hpp).
+  if (const OptionRow* row = find_solver_option(path); row != nullptr && family)
+    return option_applies(*row, *family);
   return true;
 }
 
@@ -201,7 +197,8 @@ std::string short_source(const Source& s) {
 
 }  // namespace
 
-std::string describe_config(const Config& config, bool all, std::size_t width) {
+std::string describe_config(const Config& config, bool all, std::size_t width,
+                            std::optional<SolverFamily> family) {
   const std::string solver = config.has("solver.name") ? config.get_string("solver.name") : "";
   const std::string pbd_material =
       config.has("solver.pbd.material") ? config.get_string("solver.pbd.material") : "compliance";
@@ -211,7 +208,7 @@ std::string describe_config(const Config& config, bool all, std::size_t width) {
                          0, width);
   std::size_t hidden = 0;
   auto add = [&](const KeySpec& k, const std::string& shown, const Entry& e) {
-    if (!all && !solver_reads(solver, pbd_material, k.path)) {
+    if (!all && !solver_reads(solver, family, pbd_material, k.path)) {
       ++hidden;
       return;
     }
@@ -235,6 +232,8 @@ std::string describe_config(const Config& config, bool all, std::size_t width) {
       if (auto it = config.colliders[i].find(k.path); it != config.colliders[i].end())
         add(k, "collider." + std::to_string(i) + k.path.substr(8), it->second);
   if (hidden > 0) out += fmt::format("  ({} keys of other solvers hidden)\n", hidden);
+  if (family)
+    for (const std::string& w : unread_solver_keys(config, *family)) out += wrap("warning: " + w, 2, width);
 
   // What the solver reads for each constraint group of the scene.
   try {

@@ -995,6 +995,20 @@ SolverOptions solver_options(const Config& config) {
   return o;
 }
 
+std::vector<std::string> unread_solver_keys(const Config& config, SolverFamily family) {
+  std::vector<std::string> out;
+  const std::string solver = config.get_string("solver.name");
+  for (const OptionRow& r : solver_option_rows()) {
+    if (option_applies(r, family) || !config.has(r.key)) continue;
+    const Source& s = config.at(r.key).source;
+    if (s.file.empty()) continue;  // the default
+    const std::string where = s.line > 0 ? s.file + ":" + std::to_string(s.line) : s.file;
+    out.push_back(fmt::format("{} ({}) is set but {} does not read it (an option of {})", r.key,
+                              where, solver, families_text(r)));
+  }
+  return out;
+}
+
 long RunOptions::steps() const { return static_cast<long>(std::llround(duration / dt)); }
 
 long RunOptions::every_frame() const {

@@ -10,7 +10,6 @@
 
 #include <fmt/format.h>
 
-#include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "config/internal.hpp"
 #include "core/generators.hpp"
@@ -176,24 +175,11 @@ std::vector<std::string> kind_names() {
   return names;
 }
 
-// Every solver of the catalogue (catalog/solver_catalog.cpp), in its order.
-std::vector<std::string> solver_names() {
-  std::vector<std::string> names;
-  for (const SolverEntry& s : solver_catalog()) names.push_back(s.name);
-  return names;
-}
-
-// "" (no shadow) and the solvers that can run as a shadow (the global solvers).
-std::vector<std::string> shadow_solver_names() {
-  std::vector<std::string> names = {""};
-  for (const SolverEntry& s : solver_catalog())
-    if (s.can.shadow) names.push_back(s.name);
-  return names;
-}
-
 // The [solver] keys, one per option row of solver_api/options.hpp: key, type, default (the
-// row's value in SolverOptions{}), units, bounds, choices and doc all come from the row;
-// solver.name's choices are the catalogue's names.
+// row's value in SolverOptions{}), units, bounds, choices and doc all come from the row.
+// solver.name and shadow.solver have no list of choices here: config/ stands below the
+// catalogue (catalog/), and the harness refuses a name the catalogue does not have (or one that
+// cannot run as a shadow) with the file and line that set it.
 std::vector<KeySpec> solver_keys() {
   const SolverOptions defaults;
   std::vector<KeySpec> keys;
@@ -213,8 +199,12 @@ std::vector<KeySpec> solver_keys() {
     k.max = r.bounds.max;
     k.min_exclusive = r.bounds.min_exclusive;
     k.max_exclusive = r.bounds.max_exclusive;
-    k.choices = r.key == "solver.name" ? solver_names() : r.choices;
+    k.choices = r.choices;
     k.doc = r.doc;
+    // A shared [solver] key that not every family reads says which do (the [solver.<family>]
+    // tables say it in their docs); describe hides it from the others.
+    const bool family_table = std::count(r.key.begin(), r.key.end(), '.') > 1;
+    if (!family_table && r.families != kAllFamilies) k.doc += " (read by " + families_text(r) + ")";
     keys.push_back(std::move(k));
   }
   return keys;
@@ -492,7 +482,7 @@ const std::vector<KeySpec>& common_keys() {
     // The solver keys: one per option row (solver_api/options.hpp).
     append(keys, solver_keys());
     append(keys, {
-        text("shadow.solver", "", shadow_solver_names(),
+        text("shadow.solver", "", {},
              "a global solver (global-cholmod, global-cg, global-ceres) run as a shadow: from the "
              "start of every k-th step it solves the converged step without touching the run, "
              "and the gap is logged (shadow_* series); empty: no shadow"),

@@ -251,6 +251,7 @@ std::vector<PlannedRun> plan_runs(const Experiment& ex, const EvaluateOptions& o
       p.overrides = ex.overrides(run, options.tier, trial);
       p.file = options.runs_dir / ex.id / (trial_stem(run, trials, trial) + ".h5");
       const config::Config cfg = config::load(p.scenario, p.overrides);
+      check_solver_names(cfg);
       p.config_toml = cfg.to_toml();
       p.current = run_is_current(p.file, p.config_toml);
       out.push_back(std::move(p));

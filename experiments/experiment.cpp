@@ -9,6 +9,7 @@
 
 #include "config/data_dir.hpp"
 #include "config/toml_text.hpp"
+#include "harness/runner.hpp"
 #include "runfile/series.hpp"
 
 namespace pbdbench::experiments {
@@ -546,7 +547,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
     for (const RunSpec& run : ex.runs) {
       for (Tier tier : {Tier::Full, Tier::Quick}) {
         try {
-          (void)config::load(ex.scenario_of(run), ex.overrides(run, tier, 0));
+          check_solver_names(config::load(ex.scenario_of(run), ex.overrides(run, tier, 0)));
         } catch (const config::ConfigError& e) {
           fail(file, run.line, "run", fmt::format("run '{}' ({} tier): {}", run.name, to_string(tier), e.what()));
         }

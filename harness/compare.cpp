@@ -203,7 +203,7 @@ const std::set<std::string>& uncompared_series() {
       "time",           "step",           "substeps",          "iterations",
       "contacts",       "active_contacts", "skipped",          "ref_steps",
       "newton_iterations", "linear_setups", "linear_solves",   "error_test_failures",
-      "convergence_failures", "cholesky_factorizations", "lu_factorizations"};
+      "convergence_failures", "cholesky_factorizations", "lu_factorizations", "stop_reason"};
   return names;
 }
 

@@ -47,6 +47,30 @@ std::string non_finite(const Sample& s, bool elastic_defined) {
 
 }  // namespace
 
+void check_solver_names(const config::Config& config) {
+  auto source_of = [&config](const std::string& key) {
+    const config::Source& s = config.at(key).source;
+    return s.file.empty() ? config::Source{config.file.string(), 0} : s;
+  };
+  std::vector<std::string> names, shadows;
+  for (const SolverEntry& e : solver_catalog()) {
+    names.push_back(e.name);
+    if (e.can.shadow) shadows.push_back(e.name);
+  }
+  const std::string name = config.get_string("solver.name");
+  if (find_solver(name) == nullptr) {
+    std::string message = fmt::format("solver.name = '{}' is not one of {}", name, fmt::join(names, ", "));
+    if (const std::string close = config::suggest_name(name, names); !close.empty())
+      message += " (did you mean '" + close + "'?)";
+    throw config::ConfigError(source_of("solver.name"), "solver.name", message);
+  }
+  const std::string shadow = config.get_string("shadow.solver");
+  if (const SolverEntry* e = find_solver(shadow); !shadow.empty() && (e == nullptr || !e->can.shadow))
+    throw config::ConfigError(source_of("shadow.solver"), "shadow.solver",
+                              fmt::format("shadow.solver = '{}' is not one of the solvers that can run "
+                                          "as a shadow: {} (or empty: no shadow)", shadow, fmt::join(shadows, ", ")));
+}
+
 RunOutcome run_config(const config::Config& config, const std::filesystem::path& out,
                       const RunControl& control) {
   const auto t_start = Clock::now();
@@ -77,12 +101,16 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
           "(shadow.solver = '" + shadow_name + "' builds its energy model once)");
   }
   // A solver that cannot run this scene is bad input (exit 2), found after parsing.
+  check_solver_names(config);
   std::unique_ptr<Solver> solver;
   try {
     solver = control.make_solver ? control.make_solver(solver_opts, model) : make_solver(solver_opts, model);
   } catch (const std::invalid_argument& e) {
     throw config::ConfigError(config::Source{config.file.string(), 0}, "solver.name", e.what());
   }
+  if (const SolverEntry* entry = find_solver(solver_opts.name); entry != nullptr && control.notice)
+    for (const std::string& w : config::unread_solver_keys(config, entry->family))
+      control.notice("warning: " + w);
   // The shadow: a global solver stepping a copy of the state from the same start.
   std::unique_ptr<Solver> shadow;
   const long shadow_every = static_cast<long>(config.get_int("shadow.every"));
@@ -201,6 +229,8 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       writer.append({state.time, state.step, wall, &sample, &report, &shadow_sample});
       outcome.steps_completed = k;
       health.observe(k, state, sample);
+      if (const StopReasonInfo& why = stop_reason_info(report.stop); !why.trusted)
+        health.observe_untrusted_stop(k, state.time, why.name);
       std::string why = explosion_reason(model, state, sample, run.limits, baseline);
       if (why.empty()) why = non_finite(sample, baseline.elastic_defined);
       if (!why.empty()) {

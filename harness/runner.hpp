@@ -54,6 +54,12 @@ struct RunControl {
   std::function<void(const std::string&)> notice;
 };
 
+// solver.name is a solver of the catalogue (catalog/) and shadow.solver empty or one that can run
+// as a shadow: config/, below the catalogue, does not check them. Throws ConfigError naming the
+// key, with the file and line (or --set) that set it. run_config calls it; whatever validates
+// runs before starting any (sweeps, experiments, the regression) calls it too.
+void check_solver_names(const config::Config& config);
+
 // Runs `config` and writes `out` (its directory is created). Throws config::ConfigError when the
 // scene cannot be built or the planned run does not fit the machine (before any file is
 // written), OutputRefused (runfile/output_guard.hpp) when `out` may not be written or another

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "runfile/run_file.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 
@@ -85,6 +86,30 @@ std::string status_text(const RunFileData& d) {
   return s;
 }
 
+// Why the steps stopped (the stop_reason series, solver_api/solver.hpp): "488 converged, 12
+// iteration_limit (not trusted) of 500 steps"; "" for a file without the series or steps.
+std::string stops_text(const RunFileData& d) {
+  auto s = series(d, "stop_reason");
+  if (!s || s->size() < 2) return "";
+  std::vector<long> count(stop_reasons().size(), 0);
+  long unknown = 0;
+  for (size_t k = 1; k < s->size(); ++k) {  // row 0 is the initial state
+    const double v = (*s)[k];
+    if (v >= 0.0 && v < static_cast<double>(count.size()) && v == std::floor(v))
+      ++count[static_cast<size_t>(v)];
+    else
+      ++unknown;
+  }
+  std::string out;
+  for (const StopReasonInfo& info : stop_reasons()) {
+    const long n = count[static_cast<size_t>(info.reason)];
+    if (n == 0) continue;
+    out += fmt::format("{}{} {}{}", out.empty() ? "" : ", ", n, info.name, info.trusted ? "" : " (not trusted)");
+  }
+  if (unknown > 0) out += fmt::format("{}{} of an unknown reason", out.empty() ? "" : ", ", unknown);
+  return out + fmt::format(" of {} step{}", s->size() - 1, s->size() == 2 ? "" : "s");
+}
+
 std::string number(double v) {
   if (std::isnan(v)) return "-";
   return fmt::format("{:.3g}", v);
@@ -95,6 +120,7 @@ std::string number(double v) {
 std::string summary_table(const std::vector<SummaryEntry>& entries) {
   std::vector<std::vector<std::string>> rows;
   std::string notes;  // the warnings, under the table
+  std::string stops;  // why the steps stopped, under the table
   std::vector<std::string> head1 = {"run", "status", "steps"}, head2 = {"", "", ""};
   for (const Column& c : columns()) {
     head1.push_back(c.title);
@@ -110,6 +136,7 @@ std::string summary_table(const std::vector<SummaryEntry>& entries) {
       row.push_back(steps_text(d));
       for (const Column& c : columns()) row.push_back(number(c.value(d)));
       for (const std::string& w : d.warnings()) notes += "  " + e.label + ": WARNING " + w + "\n";
+      if (const std::string why = stops_text(d); !why.empty()) stops += "  " + e.label + ": " + why + "\n";
     } catch (const std::exception& ex) {
       row.push_back("unreadable");
       row.push_back(ex.what());
@@ -139,6 +166,7 @@ std::string summary_table(const std::vector<SummaryEntry>& entries) {
       out += std::string(total - 2, '-') + "\n";
     }
   }
+  if (!stops.empty()) out += "Why the steps stopped (stop_reason, solver_api/solver.hpp):\n" + stops;
   if (!notes.empty())
     out += "!N: N warnings (metrics/health.hpp): what a reader would call a failure though no "
            "explosion limit was crossed\n" + notes;
@@ -148,7 +176,7 @@ std::string summary_table(const std::vector<SummaryEntry>& entries) {
 std::string summary_csv(const std::vector<SummaryEntry>& entries) {
   std::string out = "run,file,status,steps_completed,steps_planned,warnings";
   for (const Column& c : columns()) out += fmt::format(",{} ({})", c.title, c.units);
-  out += "\n";
+  out += ",stop reasons\n";
   for (const SummaryEntry& e : entries) {
     out += fmt::format("\"{}\",\"{}\"", e.label, e.file.string());
     try {
@@ -162,9 +190,10 @@ std::string summary_csv(const std::vector<SummaryEntry>& entries) {
       std::replace(warnings.begin(), warnings.end(), '"', '\'');
       out += fmt::format(",{},{},{},\"{}\"", d.status(), num("steps_completed"), num("steps_planned"), warnings);
       for (const Column& c : columns()) out += fmt::format(",{:.17g}", c.value(d));
+      out += ",\"" + stops_text(d) + "\"";
     } catch (const std::exception&) {
       out += ",unreadable,,,";
-      for (size_t k = 0; k < columns().size(); ++k) out += ",";
+      for (size_t k = 0; k <= columns().size(); ++k) out += ",";
     }
     out += "\n";
   }

@@ -15,10 +15,13 @@ struct SummaryEntry {
 
 // One row per entry: status, steps, constraint error (final and peak max, final RMS), volume
 // drift, energy change, peak penetration, solver milliseconds per step; a status "complete !2"
-// has 2 warnings (metrics/health.hpp), listed under the table. Unreadable files get a row saying so.
+// has 2 warnings (metrics/health.hpp), listed under the table, after why each run's steps stopped
+// (its stop_reason series counted by reason: "488 converged, 12 iteration_limit (not trusted) of
+// 500 steps"). Unreadable files get a row saying so.
 std::string summary_table(const std::vector<SummaryEntry>& entries);
 
-// The same as comma-separated values with a header row and full precision.
+// The same as comma-separated values with a header row and full precision; the last column,
+// "stop reasons", the counts of the table's note.
 std::string summary_csv(const std::vector<SummaryEntry>& entries);
 
 }  // namespace pbdbench

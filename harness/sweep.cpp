@@ -20,6 +20,7 @@
 #include <toml++/toml.h>
 
 #include "config/toml_text.hpp"
+#include "harness/runner.hpp"
 #include "harness/shards.hpp"
 #include "runfile/build_info.hpp"
 #include "core/cancel.hpp"
@@ -384,6 +385,7 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
     overrides[k].insert(overrides[k].end(), options.extra.begin(), options.extra.end());
     try {
       const config::Config cfg = config::load(spec.scenario, overrides[k]);
+      check_solver_names(cfg);
       (void)config::build_scene(cfg);
       configs[k] = cfg.to_toml();
     } catch (const ConfigError& e) {

@@ -121,7 +121,18 @@ HealthMonitor::HealthMonitor(const Model& model, const State& initial, const Sam
   if (!(energy_scale_ > 0.0)) energy_scale_ = 1e-12;
 }
 
+void HealthMonitor::observe_untrusted_stop(long step, double time, const std::string& reason) {
+  if (!stop_.seen) {
+    stop_.seen = true;
+    stop_.first_step = step;
+    stop_.first_time = time;
+  }
+  stop_.worst += 1.0;
+  ++stops_[reason];
+}
+
 void HealthMonitor::observe(long step, const State& state, const Sample& s) {
+  last_step_ = std::max(last_step_, step);
   auto note = [&](Worst& w, double value, bool crossed) {
     if (!crossed) return;
     if (!w.seen) {
@@ -202,6 +213,14 @@ std::vector<RunWarning> HealthMonitor::warnings() const {
                                "more than their radius or passed through a sphere (deepest {:.3g} m "
                                "beyond the radius, at step {})",
                                tunnel_particles_, tunnel_.worst, tunnel_.worst_step)});
+  if (stop_.seen) {
+    std::string reasons;
+    for (const auto& [reason, n] : stops_) reasons += fmt::format("{}{} {}", reasons.empty() ? "" : ", ", n, reason);
+    out.push_back({"solver_stop", stop_.first_step, stop_.first_time,
+                   fmt::format("the solver's step stopped short of what it claims in {} of {} "
+                               "steps: {}", static_cast<long>(stop_.worst),
+                               std::max(last_step_, stop_.first_step), reasons)});
+  }
   return out;
 }
 

@@ -30,8 +30,12 @@
 //   tunnelling    a dynamic particle ended a step on the forbidden side of a collider by more
 //                 than its radius (a plane, a sphere or a bowl), or its path in the step went
 //                 through an outside sphere while both ends are outside.
+//   solver_stop   steps whose solve stopped for a reason that is not trusted (the solver's
+//                 StopReason, solver_api/solver.hpp: an iteration limit spent above the tolerance,
+//                 a stall, a failed line search or linear solve), counted per reason.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -65,7 +69,11 @@ class HealthMonitor {
                 HealthThresholds thresholds = {});
   // After each step k (1-based) with the state and its sample.
   void observe(long step, const State& state, const Sample& sample);
-  // What was seen so far, in a fixed order (energy, volume, error growth, tunnelling).
+  // After step k, when the solver's step stopped for a reason that is not trusted: `reason` is
+  // its name ("iteration_limit", ...), time the time after the step (s).
+  void observe_untrusted_stop(long step, double time, const std::string& reason);
+  // What was seen so far, in a fixed order (energy, volume, error growth, tunnelling, solver
+  // stops).
   std::vector<RunWarning> warnings() const;
 
  private:
@@ -85,6 +93,9 @@ class HealthMonitor {
   Worst energy_, volume_, tunnel_;
   std::string volume_what_;
   long tunnel_particles_ = 0;  // the most particles tunnelled in one step
+  long last_step_ = 0;         // the last step observed
+  Worst stop_;                 // untrusted stops: first step; worst = their count
+  std::map<std::string, long> stops_;  // reason -> steps
   double quarter_sum_[4] = {0, 0, 0, 0};
   long quarter_n_[4] = {0, 0, 0, 0};
   long quarter_step_[4] = {0, 0, 0, 0};

@@ -374,6 +374,7 @@ GlobalResult solve_global_ceres(const GlobalProblem& problem, const SolverOption
     result.residual_h = res.h_norm;
     result.residual = res.position;
     result.converged = res.position <= tolerance;
+    if (result.converged) result.stop = StopReason::Converged;
     result.inner_iterations = solve.lm_iterations();
     return result;
   };
@@ -451,6 +452,7 @@ GlobalResult solve_global_ceres(const GlobalProblem& problem, const SolverOption
   const int max_rounds = std::max(1, options.global_max_iterations);
   double best = result.history[0].residual;
   int idle = 0;
+  result.stop = StopReason::IterationLimit;  // the rounds ran out, unless one of the ends below
   for (int round = 1; round <= max_rounds; ++round) {
     ceres::Solver::Summary summary;
     ceres::Solve(so, &least_squares, &summary);
@@ -470,12 +472,17 @@ GlobalResult solve_global_ceres(const GlobalProblem& problem, const SolverOption
       std::copy(updated.begin(), updated.end(), row_lambda.begin());
     }
     const double residual = problem.residuals(x, row_lambda).position;
+    if (summary.termination_type == ceres::FAILURE) result.stop = StopReason::LinearSolverFailed;
+    else if (summary.termination_type == ceres::NO_CONVERGENCE) result.stop = StopReason::IterationLimit;
+    else result.stop = StopReason::Stalled;  // the trust region's own tests ended the round
     if (residual <= tolerance || !solve.has_rows() || summary.termination_type == ceres::FAILURE)
       break;
+    result.stop = StopReason::IterationLimit;
     if (residual < best) {
       best = residual;
       idle = 0;
     } else if (++idle >= kMaxIdleRounds) {
+      result.stop = StopReason::Stalled;
       break;
     }
   }

@@ -377,6 +377,7 @@ GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
   };
   if (record(0) <= o.global_tolerance) {
     result.converged = true;
+    result.stop = StopReason::Converged;
     return result;
   }
 
@@ -407,7 +408,10 @@ GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
                                                       : im.solve_cg_assembled(im.A, b, dq, result);
     }
     result.time_linear += seconds_since(t_lin);
-    if (!solved) break;
+    if (!solved) {
+      result.stop = StopReason::LinearSolverFailed;
+      break;
+    }
 
     // Backtracking line search on L_A (Armijo), with an allowance for the rounding of L_A itself
     // near the solution, where its decrease falls below the last digits of its value.
@@ -425,7 +429,10 @@ GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
       }
       step *= 0.5;
     }
-    if (!accepted) break;
+    if (!accepted) {
+      result.stop = StopReason::LineSearchFailed;
+      break;
+    }
     q += step * dq;
     problem.positions(q, x);
 
@@ -449,6 +456,7 @@ GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
     if (res.position <= o.global_tolerance) {
       row_lambda = implied;
       result.converged = true;
+      result.stop = StopReason::Converged;
       break;
     }
     if (problem.stationarity_residual(x, implied) <= o.global_tolerance) row_lambda = implied;

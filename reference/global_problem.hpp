@@ -42,6 +42,7 @@
 #include "core/contacts.hpp"
 #include "core/model.hpp"
 #include "reference/energy.hpp"
+#include "solver_api/solver.hpp"
 
 namespace pbdbench {
 
@@ -73,6 +74,8 @@ struct IterationRecord {
 // What a global solve did.
 struct GlobalResult {
   bool converged = false;          // Residuals::position <= the tolerance
+  StopReason stop = StopReason::IterationLimit;  // why the solve stopped (Converged with
+                                   // converged; else the limit, the line search or the solver)
   int iterations = 0;              // outer iterations: Newton steps (global-cholmod, global-cg),
                                    // augmented-Lagrangian rounds (global-ceres)
   long inner_iterations = 0;       // conjugate-gradient or Levenberg-Marquardt iterations

@@ -72,6 +72,7 @@ class GlobalSolver final : public Solver {
       report.linear_solves += r.linear_solves;
       report.time_linear += r.time_linear;
       if (!r.converged) ++report.convergence_failures;
+      note_stop(report, r.stop);
       report.residual_g = r.residual_g;
       report.residual_h = r.residual_h;
       report.residual_position = r.residual;

@@ -234,6 +234,7 @@ class RefBdf final : public Solver {
     scene_.check_step(model, state, dt);
     StepReport report;
     report.substeps = 1;
+    report.stop = StopReason::Converged;  // CVODE's failures stop the run (they throw)
     const double t_out = state.time + dt;
     if (bdf_) {
       if (!bdf_->started() || !scene_.continues(state)) {

@@ -76,6 +76,7 @@ class RefBeContact final : public Solver {
     scene_.check_step(model, state, dt);
     StepReport report;
     report.substeps = substeps_;
+    report.stop = StopReason::Converged;  // a stalled line search is noted (substep)
     report.residual_position = 0.0;
     report.barrier_energy = 0.0;
     if (!scene_.continues(state) || q_.size() != scene_.dofs()) scene_.gather(state, q_, u_);
@@ -385,6 +386,7 @@ class RefBeContact final : public Solver {
         throw std::runtime_error(os.str());
       }
       ++report.convergence_failures;
+      note_stop(report, StopReason::LineSearchFailed);
     }
     q_ = q;
     u_ = (q - q_start) / h;

@@ -148,6 +148,7 @@ class RefDae final : public Solver {
       for (int j : skipped_) state.lambda[static_cast<size_t>(j)] = 0.0;
       StepReport r;
       r.substeps = 1;
+      r.stop = StopReason::Converged;  // nothing to integrate
       r.constraint_drift = 0.0;
       return r;
     }
@@ -181,6 +182,7 @@ class RefDae final : public Solver {
 
     StepReport r;
     r.substeps = 1;
+    r.stop = StopReason::Converged;  // IDA's failures stop the run (they throw)
     r.ref_steps = after.steps - before.steps;
     r.newton_iterations = after.newton_iterations - before.newton_iterations;
     r.linear_setups = after.linear_setups - before.linear_setups;

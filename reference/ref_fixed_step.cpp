@@ -310,6 +310,7 @@ class RefFixedStep final : public Solver {
     scene_.check_step(model, state, dt);
     StepReport report;
     report.substeps = substeps_;
+    report.stop = StopReason::Converged;  // ARKODE's failures stop the run (they throw)
     const double t_out = state.time + dt;
     if (integrator_) {
       if (!integrator_->started() || !scene_.continues(state)) {

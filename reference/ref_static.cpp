@@ -354,6 +354,7 @@ class RefStatic final : public Solver {
     scene_.check_step(model, state, dt);
     StepReport report;
     report.substeps = 1;
+    report.stop = StopReason::Converged;  // KINSOL's failures (after the fallback) throw
     const double t_out = state.time + dt;
     if (solver_) {
       scene_.gather(state, q_, u_);

@@ -14,6 +14,7 @@
 #include "experiments/evaluate.hpp"
 #include "config/data_dir.hpp"
 #include "config/toml_text.hpp"
+#include "harness/runner.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
 #include "runfile/regress_file.hpp"
@@ -175,7 +176,7 @@ Registry load_registry(const fs::path& file) {
       for (const CaseSpec& other : reg.cases)
         if (other.name == c.name) fail(file, line_of(*t), "case.name", "two cases are named '" + c.name + "'");
       try {
-        (void)config::load(c.scenario, c.set);
+        check_solver_names(config::load(c.scenario, c.set));
       } catch (const config::ConfigError& e) {
         fail(file, line_of(*t), "case", fmt::format("case '{}': {}", c.name, e.what()));
       }

@@ -132,6 +132,12 @@ const std::array kSeries = {
     SeriesSpec{"skipped", "1",
                "projections skipped (undefined gradient or zero generalised mass), summed", 1,
                true, PBDBENCH_REPORT(skipped)},
+    SeriesSpec{"stop_reason", "1",
+               "why the step's solve stopped, the worst of its substeps: 0 none (the initial "
+               "row), 1 fixed_work (pbd-seed, pbd, xpbd, force-symplectic), 2 converged, 3 "
+               "iteration_limit, 4 stalled, 5 line_search_failed, 6 linear_solver_failed (3-6: "
+               "not trusted, counted in the run's warnings; solver_api/solver.hpp StopReason)",
+               1, true, PBDBENCH_REPORT(stop)},
     SeriesSpec{"residual_g", "kg m",
                "XPBD residual |M (x - x~) - grad C^T lambda|_2 at the end of the step (NaN "
                "when the solver does not define it)",

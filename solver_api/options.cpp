@@ -56,6 +56,27 @@ bool parse_pbd_material(const std::string& name, PbdMaterial& out) {
   return true;
 }
 
+const char* to_string(SolverFamily family) {
+  switch (family) {
+    case SolverFamily::PbdSeed: return "pbd-seed";
+    case SolverFamily::Pbd: return "pbd";
+    case SolverFamily::Xpbd: return "xpbd";
+    case SolverFamily::Force: return "force-symplectic";
+    case SolverFamily::Reference: return "ref-*";
+    case SolverFamily::Global: return "global-*";
+  }
+  return "unknown";
+}
+
+std::string families_text(const OptionRow& row) {
+  if (row.families == kAllFamilies) return "every solver";
+  std::string out;
+  for (int f = 0; f < kSolverFamilyCount; ++f)
+    if (option_applies(row, static_cast<SolverFamily>(f)))
+      out += (out.empty() ? "" : ", ") + std::string(to_string(static_cast<SolverFamily>(f)));
+  return out;
+}
+
 int available_cores() {
   int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   cpu_set_t set;
@@ -216,128 +237,146 @@ std::string check_row(const OptionRow& r, const OptionValue& value) {
 std::vector<OptionRow> make_rows() {
   using S = SolverOptions;
   std::vector<OptionRow> rows;
-  auto add = [&rows](OptionRow r) { rows.push_back(std::move(r)); };
-  // Keys every solver reads.
-  add(text("solver.name", &S::name, {},
+  // Each row names the families that read it (SolverFamily): its value is checked for their
+  // solvers only (validate(family)), and a scenario that sets it for another solver is warned.
+  auto add = [&rows](FamilySet families, OptionRow r) {
+    r.families = families;
+    rows.push_back(std::move(r));
+  };
+  constexpr FamilySet kSeed = family_bit(SolverFamily::PbdSeed);
+  constexpr FamilySet kPbd = family_bit(SolverFamily::Pbd);
+  constexpr FamilySet kXpbd = family_bit(SolverFamily::Xpbd);
+  constexpr FamilySet kForce = family_bit(SolverFamily::Force);
+  constexpr FamilySet kReference = family_bit(SolverFamily::Reference);
+  constexpr FamilySet kGlobal = family_bit(SolverFamily::Global);
+  constexpr FamilySet kProjecting = kSeed | kPbd | kXpbd;  // projection sweeps
+  // Substeps: every family (of ref-*, ref-be and ref-sdirk2 read it; ref-bdf, ref-dae and
+  // ref-static integrate to the output time with their own steps).
+  constexpr FamilySet kSubstepping = kAllFamilies;
+  // Contacts built each substep at the predicted positions (ref-be finds its own).
+  constexpr FamilySet kContactBuilding = kProjecting | kForce | kGlobal;
+  // [solver]: the keys of every family or of the families named.
+  add(kAllFamilies, text("solver.name", &S::name, {},
            "solver: pbd-seed (the seed article's listing), pbd (Mueller et al. 2007), xpbd "
            "(Macklin et al. 2016), force-symplectic (explicit symplectic Euler, penalty "
-           "contacts), or a reference integrator ref-* (`pbdbench list`)"));
-  add(integer("solver.iterations", &S::iterations, within(1, 100000), "projection sweeps per substep"));
-  add(integer("solver.substeps", &S::substeps, within(1, 100000),
+           "contacts), a reference integrator ref-* or a global solver global-* (`pbdbench list` "
+           "names every solver)"));
+  add(kProjecting, integer("solver.iterations", &S::iterations, within(1, 100000), "projection sweeps per substep"));
+  add(kSubstepping, integer("solver.substeps", &S::substeps, within(1, 100000),
               "substeps per step (Macklin et al. 2019)"));
-  add(named("solver.order", &S::order, order_names(), parse_projection_order,
+  add(kProjecting, named("solver.order", &S::order, order_names(), parse_projection_order,
             "order of a sweep: sequential, reversed, shuffled, colored, grouped_shuffled, "
             "bottom_up (Gauss-Seidel) or jacobi (docs/solvers.md)"));
-  add(integer("solver.shuffle_seed", &S::shuffle_seed, at_least(0),
+  add(kProjecting, integer("solver.shuffle_seed", &S::shuffle_seed, at_least(0),
               "seed of the shuffled and grouped_shuffled orders"));
-  add(real("solver.jacobi_relaxation", &S::jacobi_relaxation, "1", above_upto(0, 2),
+  add(kProjecting, real("solver.jacobi_relaxation", &S::jacobi_relaxation, "1", above_upto(0, 2),
            "relaxation omega of the jacobi order"));
-  add(boolean("solver.jacobi_averaging", &S::jacobi_averaging,
+  add(kProjecting, boolean("solver.jacobi_averaging", &S::jacobi_averaging,
               "jacobi: divide each correction by the particle's constraint count"));
-  add(real("solver.contact_margin", &S::contact_margin, "m", at_least(0),
+  add(kContactBuilding, real("solver.contact_margin", &S::contact_margin, "m", at_least(0),
            "contacts closer than this at the predicted positions are built each substep"));
-  add(named("solver.precision", &S::precision, {"double", "float"}, parse_precision,
+  add(kPbd | kXpbd, named("solver.precision", &S::precision, {"double", "float"}, parse_precision,
             "pbd, xpbd: the precision they compute in: double, or float (the projections in "
             "float32, positions, velocities, predictions and multipliers stored in float32; "
             "docs/solvers.md); pbd-seed is float by its departure D10"));
-  add(integer("solver.threads", &S::threads, within(0, 1024),
+  add(kPbd | kXpbd, integer("solver.threads", &S::threads, within(0, 1024),
               "pbd, xpbd: threads of the colored and Jacobi sweeps (the results are the same "
               "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
               "1 by default (docs/performance.md)"));
   // [solver.pbd], [solver.xpbd]
-  add(named("solver.pbd.material", &S::pbd_material, {"compliance", "stiffness"}, parse_pbd_material,
+  add(kPbd, named("solver.pbd.material", &S::pbd_material, {"compliance", "stiffness"}, parse_pbd_material,
             "pbd: where each constraint's per-iteration stiffness k comes from: compliance (the "
             "scene's one physical material, the *_compliance keys; k derived per substep by the "
             "effective-stiffness law of Mueller et al. 2007, docs/solvers.md) or stiffness (an "
             "explicit override: the *_stiffness keys are k itself)"));
-  add(boolean("solver.pbd.stiffness_correction", &S::pbd_stiffness_correction,
+  add(kPbd, boolean("solver.pbd.stiffness_correction", &S::pbd_stiffness_correction,
               "pbd with material = stiffness: use k' = 1 - (1 - k)^(1/iterations) (Mueller et "
               "al. 2007, sec. 3.3)"));
-  add(real("solver.pbd.velocity_damping", &S::pbd_velocity_damping, "1", within(0, 1),
+  add(kPbd, real("solver.pbd.velocity_damping", &S::pbd_velocity_damping, "1", within(0, 1),
            "pbd: damping of the motion relative to the rigid modes (Mueller et al. 2007, sec. 3.5)"));
-  add(boolean("solver.xpbd.residuals", &S::xpbd_residuals,
+  add(kXpbd, boolean("solver.xpbd.residuals", &S::xpbd_residuals,
               "xpbd: compute the residuals g and h at the end of each step"));
   // [solver.force]
-  add(real("solver.force.contact_stiffness", &S::force_contact_stiffness, "N/m", above(0),
+  add(kForce, real("solver.force.contact_stiffness", &S::force_contact_stiffness, "N/m", above(0),
            "force-symplectic: penalty stiffness k_c of a contact, force k_c (-C) while C < 0"));
-  add(real("solver.force.contact_damping", &S::force_contact_damping, "N s/m", at_least(0),
+  add(kForce, real("solver.force.contact_damping", &S::force_contact_damping, "N s/m", at_least(0),
            "force-symplectic: contact damping d_c, force -d_c v_n on the relative normal "
            "velocity while C < 0 (approaching or separating; the contact force never pulls)"));
   // [solver.seed]
-  add(real("solver.seed.damping", &S::seed_damping, "1", within(0, 1),
+  add(kSeed, real("solver.seed.damping", &S::seed_damping, "1", within(0, 1),
            "pbd-seed: velocity damping factor alpha of step 4"));
-  add(boolean("solver.seed.damping_rescale", &S::seed_damping_rescale,
+  add(kSeed, boolean("solver.seed.damping_rescale", &S::seed_damping_rescale,
               "pbd-seed: use alpha^(dt / reference_dt)"));
-  add(boolean("solver.seed.gravity_rescale", &S::seed_gravity_rescale,
+  add(kSeed, boolean("solver.seed.gravity_rescale", &S::seed_gravity_rescale,
               "pbd-seed: scale gravity by reference_dt / dt"));
-  add(real("solver.seed.reference_dt", &S::seed_reference_dt, "s", above(0),
+  add(kSeed, real("solver.seed.reference_dt", &S::seed_reference_dt, "s", above(0),
            "pbd-seed: the time step alpha was tuned at"));
-  add(real("solver.seed.restitution", &S::seed_restitution, "1", within(0, 1),
+  add(kSeed, real("solver.seed.restitution", &S::seed_restitution, "1", within(0, 1),
            "pbd-seed: restitution of the listing's collision response"));
-  add(strings("solver.seed.fixes", &S::seed_fixes, seed_departure_ids(),
+  add(kSeed, strings("solver.seed.fixes", &S::seed_fixes, seed_departure_ids(),
               "pbd-seed: ids of the departures from Mueller et al. 2007 to correct"));
-  add(text("solver.seed.iteration_schedule", &S::seed_iteration_schedule,
+  add(kSeed, text("solver.seed.iteration_schedule", &S::seed_iteration_schedule,
            {"fixed", "dynamic", "mixed"},
            "pbd-seed: sweeps per substep: fixed (solver.iterations), dynamic (article 4.1: 10 on "
            "the run's first step, then 3, or 5 when the fastest particle is faster than "
            "fast_speed) or mixed (5.3: 1 when the fastest particle is faster than fast_speed, "
            "else 3); speeds at the start of the step"));
-  add(real("solver.seed.fast_speed", &S::seed_fast_speed, "m/s", above(0),
+  add(kSeed, real("solver.seed.fast_speed", &S::seed_fast_speed, "m/s", above(0),
            "pbd-seed: the speed above which a particle is fast (iteration_schedule, "
            "dynamic_inverse_mass)"));
-  add(text("solver.seed.backup", &S::seed_backup, {"before_forces", "after_damping"},
+  add(kSeed, text("solver.seed.backup", &S::seed_backup, {"before_forces", "after_damping"},
            "pbd-seed: where old_pos is backed up: before_forces (step 1, the listing) or "
            "after_damping (after step 4, the placement article 3.1a warns against: step 5 then "
            "sets every velocity to 0)"));
-  add(boolean("solver.seed.dynamic_inverse_mass", &S::seed_dynamic_inverse_mass,
+  add(kSeed, boolean("solver.seed.dynamic_inverse_mass", &S::seed_dynamic_inverse_mass,
               "pbd-seed: article 4.2, each step every dynamic particle's inverse mass is 0.1 "
               "(1/kg) when it is faster than fast_speed, else 0.3; pinned stay 0"));
-  add(boolean("solver.seed.graded_inverse_mass", &S::seed_graded_inverse_mass,
+  add(kSeed, boolean("solver.seed.graded_inverse_mass", &S::seed_graded_inverse_mass,
               "pbd-seed: article 4.2, inverse masses graded from the pins: 0.3 min(1, d / d_c) "
               "(1/kg), d the hop distance from the nearest pin over constraint edges, d_c half "
               "the largest (at least 1); needs a pin"));
   // [solver.ref]
-  add(real("solver.ref.rtol", &S::ref_rtol, "1", within_open(0, 1),
+  add(kReference, real("solver.ref.rtol", &S::ref_rtol, "1", within_open(0, 1),
            "reference: relative tolerance of the adaptive integrators and of every Newton solve"));
-  add(real("solver.ref.atol", &S::ref_atol, "m", above(0), "reference: absolute tolerance of positions"));
-  add(real("solver.ref.atol_velocity", &S::ref_atol_velocity, "m/s", above(0),
+  add(kReference, real("solver.ref.atol", &S::ref_atol, "m", above(0), "reference: absolute tolerance of positions"));
+  add(kReference, real("solver.ref.atol_velocity", &S::ref_atol_velocity, "m/s", above(0),
            "ref-bdf: absolute tolerance of velocities"));
-  add(text("solver.ref.linear_solver", &S::ref_linear_solver, {"reduced", "full"},
+  add(kReference, text("solver.ref.linear_solver", &S::ref_linear_solver, {"reduced", "full"},
            "ref-bdf, ref-be, ref-sdirk2: Newton systems solved through the n x n reduced matrix "
            "M + gamma D + gamma^2 K (Cholesky, LU fallback) or by LU on the whole 2n x 2n matrix"));
-  add(integer("solver.ref.max_steps", &S::ref_max_steps, within(1, 1000000000),
+  add(kReference, integer("solver.ref.max_steps", &S::ref_max_steps, within(1, 1000000000),
               "reference: internal steps allowed to advance by one output step"));
-  add(integer("solver.ref.max_newton", &S::ref_max_newton, within(1, 100000),
+  add(kReference, integer("solver.ref.max_newton", &S::ref_max_newton, within(1, 100000),
               "reference: Newton iterations allowed per nonlinear solve"));
-  add(boolean("solver.ref.ignore_colliders", &S::ref_ignore_colliders,
+  add(kReference, boolean("solver.ref.ignore_colliders", &S::ref_ignore_colliders,
               "reference: run a scene that has colliders without its contacts (ref-be "
               "simulates them, the other references refuse them; the run file records this key)"));
-  add(real("solver.ref.barrier_distance", &S::ref_barrier_distance, "m", above(0),
+  add(kReference, real("solver.ref.barrier_distance", &S::ref_barrier_distance, "m", above(0),
            "ref-be with contact: d_hat, the IPC barrier acts on gaps below this"));
-  add(real("solver.ref.barrier_stiffness", &S::ref_barrier_stiffness, "N/m", at_least(0),
+  add(kReference, real("solver.ref.barrier_stiffness", &S::ref_barrier_stiffness, "N/m", at_least(0),
            "ref-be with contact: kappa, the barrier's stiffness; 0 = the heaviest dynamic "
            "particle's weight per d_hat"));
-  add(real("solver.ref.friction_velocity", &S::ref_friction_velocity, "m/s", above(0),
+  add(kReference, real("solver.ref.friction_velocity", &S::ref_friction_velocity, "m/s", above(0),
            "ref-be with contact: eps_v, friction is smoothed to 0 below this sliding speed"));
   // [solver.global]
-  add(real("solver.global.tolerance", &S::global_tolerance, "m", above(0),
+  add(kGlobal, real("solver.global.tolerance", &S::global_tolerance, "m", above(0),
            "global-*: converged when the step's KKT residual, in position units, is below this"));
-  add(integer("solver.global.max_iterations", &S::global_max_iterations, within(1, 1000000),
+  add(kGlobal, integer("solver.global.max_iterations", &S::global_max_iterations, within(1, 1000000),
               "global-*: outer iterations allowed per step (Newton, or Levenberg-Marquardt for "
               "global-ceres)"));
-  add(real("solver.global.regularization", &S::global_regularization, "1", above_upto(0, 1),
+  add(kGlobal, real("solver.global.regularization", &S::global_regularization, "1", above_upto(0, 1),
            "global-*: eta; a rigid constraint or contact r gets the augmented-Lagrangian penalty "
            "1 / (eta w_r), w_r its generalised inverse mass"));
-  add(text("solver.global.cg_preconditioner", &S::global_cg_preconditioner,
+  add(kGlobal, text("solver.global.cg_preconditioner", &S::global_cg_preconditioner,
            {"incomplete_cholesky", "jacobi"}, "global-cg: preconditioner of the assembled matrix"));
-  add(boolean("solver.global.matrix_free", &S::global_matrix_free,
+  add(kGlobal, boolean("solver.global.matrix_free", &S::global_matrix_free,
               "global-cg: apply the Newton matrix term by term, never assembled (Jacobi "
               "preconditioner)"));
-  add(real("solver.global.cg_tolerance", &S::global_cg_tolerance, "1", within_open(0, 1),
+  add(kGlobal, real("solver.global.cg_tolerance", &S::global_cg_tolerance, "1", within_open(0, 1),
            "global-cg: relative residual at which each conjugate-gradient solve stops"));
-  add(integer("solver.global.cg_max_iterations", &S::global_cg_max_iterations,
+  add(kGlobal, integer("solver.global.cg_max_iterations", &S::global_cg_max_iterations,
               within(1, 100000000), "global-cg: conjugate-gradient iterations per solve"));
-  add(text("solver.global.ceres_method", &S::global_ceres_method,
+  add(kGlobal, text("solver.global.ceres_method", &S::global_ceres_method,
            {"levenberg_marquardt", "dogleg"}, "global-ceres: the trust-region strategy"));
   return rows;
 }
@@ -355,15 +394,30 @@ const OptionRow* find_solver_option(const std::string& key) {
   return nullptr;
 }
 
-std::string SolverOptions::validate() const {
-  // solver.name is checked against the catalogue by make_solver (catalog/) and the schema's
-  // choices; every other row by its bounds or choices.
+namespace {
+
+// The bounds and choices of the rows read by `families`, and their checks across fields.
+std::string validate_rows(const SolverOptions& o, FamilySet families) {
   for (const OptionRow& r : solver_option_rows())
-    if (std::string problem = check_row(r, r.get(*this)); !problem.empty()) return problem;
-  if (seed_dynamic_inverse_mass && seed_graded_inverse_mass)
+    if ((r.families & families) != 0)
+      if (std::string problem = check_row(r, r.get(o)); !problem.empty()) return problem;
+  if ((families & family_bit(SolverFamily::PbdSeed)) != 0 && o.seed_dynamic_inverse_mass &&
+      o.seed_graded_inverse_mass)
     return "solver.seed.dynamic_inverse_mass and solver.seed.graded_inverse_mass are both true: "
            "each sets every inverse mass, choose one";
   return {};
+}
+
+}  // namespace
+
+std::string SolverOptions::validate() const {
+  // solver.name is checked against the catalogue by make_solver (catalog/) and the schema's
+  // choices; every other row by its bounds or choices.
+  return validate_rows(*this, kAllFamilies);
+}
+
+std::string SolverOptions::validate(SolverFamily family) const {
+  return validate_rows(*this, family_bit(family));
 }
 
 }  // namespace pbdbench

@@ -72,6 +72,29 @@ bool parse_pbd_material(const std::string& name, PbdMaterial& out);
 
 
 
+// The families of solvers, one per option table: each reads its own options
+// (OptionRow::families). The catalogue (catalog/) says which family each solver is of; a new
+// PBD variant takes the family whose options it reads.
+enum class SolverFamily : std::uint8_t {
+  PbdSeed,    // pbd-seed: the seed article's listing (solver.seed.*)
+  Pbd,        // pbd: Mueller et al. 2007 (solver.pbd.*)
+  Xpbd,       // xpbd: Macklin et al. 2016 (solver.xpbd.*)
+  Force,      // force-symplectic (solver.force.*)
+  Reference,  // ref-*: SUNDIALS integrators of the scene's energy (solver.ref.*)
+  Global,     // global-*: every step the converged global projection (solver.global.*)
+};
+inline constexpr int kSolverFamilyCount = 6;
+
+// "pbd-seed", "pbd", "xpbd", "force-symplectic", "ref-*", "global-*": the solvers of a family.
+const char* to_string(SolverFamily family);
+
+// A set of families, one bit each (1 << SolverFamily).
+using FamilySet = std::uint8_t;
+inline constexpr FamilySet family_bit(SolverFamily f) {
+  return static_cast<FamilySet>(1u << static_cast<unsigned>(f));
+}
+inline constexpr FamilySet kAllFamilies = (1u << kSolverFamilyCount) - 1;
+
 // The CPUs this process may run on (its affinity mask), at least 1, and at most the share in the
 // environment variable PBDBENCH_CORES when it holds a whole number >= 1 (sweep --jobs N gives
 // each of its runs max(1, cores / N)): what solver.threads = 0 means.
@@ -191,6 +214,10 @@ struct SolverOptions {
   // e.g. "solver.iterations = 0 is below the minimum 1": every row's bounds and choices (except
   // solver.name's, which the catalogue checks), and the checks across fields.
   std::string validate() const;
+  // The same for the solvers of one family: only the rows it reads (OptionRow::families) and
+  // its own checks across fields. The options of other families are not read, so not checked
+  // (config/ warns when a scenario sets them: config::unread_solver_keys). make_solver uses this.
+  std::string validate(SolverFamily family) const;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -216,6 +243,7 @@ struct OptionRow {
   OptionBounds bounds;
   std::vector<std::string> choices;  // allowed values of a String / StringList; empty: any
   std::string doc;                   // one line
+  FamilySet families = kAllFamilies;  // the families whose solvers read it
   std::function<OptionValue(const SolverOptions&)> get;          // the field's value
   std::function<void(SolverOptions&, const OptionValue&)> set;   // throws std::invalid_argument
                                                                   // for a name no enum has
@@ -228,5 +256,13 @@ const std::vector<OptionRow>& solver_option_rows();
 
 // The row of `key`, or nullptr.
 const OptionRow* find_solver_option(const std::string& key);
+
+// Whether the solvers of `family` read the option of `row`.
+inline bool option_applies(const OptionRow& row, SolverFamily family) {
+  return (row.families & family_bit(family)) != 0;
+}
+
+// The families of `row` in words: "pbd-seed, pbd, xpbd", "every solver".
+std::string families_text(const OptionRow& row);
 
 }  // namespace pbdbench

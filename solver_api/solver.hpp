@@ -6,6 +6,7 @@
 //   StepReport r = solver->step(model, state, dt);  // advance state by dt
 #pragma once
 
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <string>
@@ -17,6 +18,38 @@
 
 namespace pbdbench {
 
+// Why a step's solve stopped, in each family's terms; the worst of its substeps and solves (the
+// larger value). A reason is trusted when the step did what the solver promises (its fixed work,
+// or convergence to its tolerance); the others mark a step whose result is not what the solver
+// claims: the run's warnings count them (metrics/health.hpp, solver_stop).
+enum class StopReason : std::uint8_t {
+  None = 0,            // no step taken (the run file's initial row)
+  FixedWork = 1,       // pbd-seed, pbd, xpbd: the fixed sweeps (solver.iterations per substep)
+                       // ran out; force-symplectic: its explicit step. No convergence test.
+  Converged = 2,       // ref-*: every internal step passed its error test and every Newton solve
+                       // converged (a failure of either stops the run); global-*: the KKT
+                       // residual fell below solver.global.tolerance
+  IterationLimit = 3,  // global-*: solver.global.max_iterations spent above the tolerance
+  Stalled = 4,         // global-ceres: the rounds stopped lowering the residual, or the trust
+                       // region's own tests (gradient, step size) ended above the tolerance
+  LineSearchFailed = 5,    // global-*: no decrease of the merit function in 40 halvings of the
+                           // Newton step; ref-be with contact: the barrier energy at its
+                           // round-off floor above the Newton tolerance (60 halvings)
+  LinearSolverFailed = 6,  // global-*: the Newton system's factorisation or conjugate-gradient
+                           // solve failed (not positive definite, breakdown, non-finite step)
+};
+inline constexpr int kStopReasonCount = 7;
+
+struct StopReasonInfo {
+  StopReason reason = StopReason::None;
+  const char* name = "";  // "fixed_work", "converged", "iteration_limit", ...
+  const char* doc = "";   // one line
+  bool trusted = true;    // false: the step's result is not what the solver claims
+};
+// Every reason, by value (index = the value stored in the run file's stop_reason series).
+const std::vector<StopReasonInfo>& stop_reasons();
+const StopReasonInfo& stop_reason_info(StopReason reason);
+
 // What one step did. Every field is logged as a series of the run file (runfile/series.hpp).
 struct StepReport {
   int substeps = 0;           // substeps taken in this step
@@ -25,6 +58,8 @@ struct StepReport {
   int active_contacts = 0;    // of those, the ones with C < 0 at some projection (summed)
   int skipped = 0;            // projections skipped because the gradient was undefined or the
                               // generalised mass was zero (summed over sweeps and substeps)
+  StopReason stop = StopReason::None;  // why the step's solve stopped: the worst of its
+                              // substeps (note_stop)
   // XPBD residuals at the end of the step's last substep (Macklin et al. 2016, eqs. 8 and 9);
   // NaN for solvers that do not define them.
   double residual_g = std::numeric_limits<double>::quiet_NaN();  // |M (x - x~) - grad C^T lambda|_2, kg m
@@ -59,6 +94,11 @@ struct StepReport {
   double time_velocity = 0.0;  // velocity update, damping, friction and restitution
   double time_linear = 0.0;    // reference integrators: Jacobian assembly, factorisation, solves
 };
+
+// Records one substep's (or solve's) stop reason: the report keeps the worst.
+inline void note_stop(StepReport& report, StopReason reason) {
+  if (reason > report.stop) report.stop = reason;
+}
 
 class Solver {
  public:

@@ -1,5 +1,5 @@
-// The substep driver: the step skeleton that every family stepping in substeps shares (pbd, xpbd,
-// force-symplectic in solvers/; the global solvers in reference/), and the pieces of a substep
+// The substep driver: the step skeleton that every family stepping in substeps shares (pbd-seed,
+// pbd, xpbd, force-symplectic in solvers/; the global solvers in reference/), and the pieces of a substep
 // they have in common. With h = dt / substeps and t_end the time at the end of substep s:
 //
 //   check_step(...)                                  (the caller, before run_substeps)

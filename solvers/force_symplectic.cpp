@@ -89,6 +89,7 @@ class ForceSymplecticSolver final : public Solver {
 
     return run_substeps(model, state, dt, options_.substeps,
                         [&](const Substep& sub, PhaseTimer& timer, StepReport& report) {
+      note_stop(report, StopReason::FixedWork);  // an explicit step
       const double h = sub.h;
       const double t_end = sub.t_end;
       timer.lap(report.time_predict);

@@ -73,6 +73,7 @@ class PbdSolver final : public Solver {
     }
     return run_substeps(model, state, dt, options_.substeps,
                         [&](const Substep& sub, PhaseTimer& timer, StepReport& report) {
+      note_stop(report, StopReason::FixedWork);  // solver.iterations sweeps, no convergence test
       const double h = sub.h;
       const double t_end = sub.t_end;
       if (single)

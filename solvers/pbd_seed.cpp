@@ -11,7 +11,8 @@
 //
 // The listing works in float (D10): the state is copied to float at the start of a step and back
 // to double at its end (a float survives that round trip exactly). With "D10" fixed the very same
-// code runs in double. Substeps: the whole listing Step(dt / substeps) is repeated.
+// code runs in double. Substeps: the whole listing Step(dt / substeps) is repeated, by the
+// substep driver every family shares (solver_api/substep_driver.hpp).
 //
 // The article's tuning options (solver.seed.iteration_schedule, backup, dynamic_inverse_mass,
 // graded_inverse_mass; solvers/pbd_seed.hpp) change how many sweeps a step makes, where step 1's
@@ -175,9 +176,6 @@ class PbdSeedSolver final : public Solver {
 
   StepReport step(const Model& model, State& state, double dt) override {
     check_step(model, state, dt, particles_count_, constraints_);
-    StepReport report;
-    report.substeps = options_.substeps;
-    const double h = dt / options_.substeps;
     state.lambda.assign(model.constraints.size(), std::nan(""));  // no multipliers: no forces
     skipped_ = 0;
     // The article's tuning options, from the velocities at the start of the step.
@@ -199,17 +197,23 @@ class PbdSeedSolver final : public Solver {
       p.inv_mass = static_cast<Real>(seen.inv_mass[static_cast<size_t>(i)]);
       p.radius = static_cast<Real>(model.radius[static_cast<size_t>(i)]);
     }
-    for (int s = 0; s < options_.substeps; ++s) {
-      listing_step(seen, h, state.time + (s + 1) * h, state.step, s, iterations, report);
-    }
+    // The shared substep driver (solver_api/substep_driver.hpp): the listing's own state is the
+    // float copy above, which the listing's kinematic particles are set in (N3); the driver's
+    // set_kinematic on state.x and state.v is overwritten by the copy back below. The driver
+    // advances state.time and state.step after the last substep (state.step inside is this
+    // step's index, as the iteration schedule and the shuffled orders read it).
+    const long step_index = state.step;
+    StepReport report = run_substeps(model, state, dt, options_.substeps,
+                                     [&](const Substep& sub, PhaseTimer& timer, StepReport& r) {
+      note_stop(r, StopReason::FixedWork);  // solver.iterations sweeps, no convergence test
+      listing_step(seen, sub.h, sub.t_end, step_index, sub.index, iterations, timer, r);
+    });
     for (int i = 0; i < particles_count_; ++i) {
       const Particle<Real>& p = particles_[static_cast<size_t>(i)];
       state.x.row(i) = p.pos.template cast<double>().transpose();
       state.v.row(i) = p.velocity.template cast<double>().transpose();
     }
     report.skipped = skipped_;
-    state.time += dt;
-    state.step += 1;
     return report;
   }
 
@@ -217,9 +221,8 @@ class PbdSeedSolver final : public Solver {
   // One call of the listing's PBD_Solver::Step(float dt) with dt = h; t_end = time at its end;
   // `iterations` sweeps.
   void listing_step(const Model& model, double h, double t_end, long step, int substep,
-                    int iterations, StepReport& report) {
+                    int iterations, PhaseTimer& timer, StepReport& report) {
     const Real dt = static_cast<Real>(h);  // D10: float dt
-    PhaseTimer timer;
     // 4.4: alpha_eff = alpha^(dt / reference_dt) and g_eff = g * reference_dt / dt, when asked.
     const double alpha = options_.seed_damping_rescale
                              ? std::pow(options_.seed_damping, h / options_.seed_reference_dt)

@@ -102,6 +102,7 @@ class XpbdSolver final : public Solver {
 
     const StepReport report = run_substeps(
         model, state, dt, substeps, [&](const Substep& sub, PhaseTimer& timer, StepReport& report) {
+      note_stop(report, StopReason::FixedWork);  // solver.iterations sweeps, no convergence test
       const int s = sub.index;
       const double t_end = sub.t_end;
       if (single)

@@ -18,7 +18,9 @@ namespace {
 std::vector<SolverEntry> pbd_family() {
   std::vector<SolverEntry> out;
   for (const SolverEntry& info : solver_catalog())
-    if (info.family == SolverFamily::Pbd) out.push_back(info);
+    if (info.family == SolverFamily::PbdSeed || info.family == SolverFamily::Pbd ||
+        info.family == SolverFamily::Xpbd)
+      out.push_back(info);
   return out;
 }
 
@@ -114,21 +116,75 @@ TEST(Registry, BadOptionsNameTheField) {
   o.contact_margin = -0.1;
   expect_rejected(o, "solver.contact_margin");
   o = {};
+  o.name = "pbd";
   o.pbd_velocity_damping = 1.5;
   expect_rejected(o, "solver.pbd.velocity_damping");
   o = {};
+  o.name = "pbd-seed";
   o.seed_damping = -0.1;
   expect_rejected(o, "solver.seed.damping");
   o = {};
+  o.name = "pbd-seed";
   o.seed_reference_dt = 0.0;
   expect_rejected(o, "solver.seed.reference_dt");
   o = {};
+  o.name = "pbd-seed";
   o.seed_restitution = 2.0;
   expect_rejected(o, "solver.seed.restitution");
   o = {};
   o.name = "pbd-seed";
   o.seed_fixes = {"D3", "D12"};
   expect_rejected(o, "solver.seed.fixes");
+}
+
+// Each solver validates the options of its own family (its row's family): another family's
+// option, which it does not read, is not its business, however bad.
+TEST(Registry, EachFamilyValidatesItsOwnOptions) {
+  const Model m = chain_model(2, 0.1, 1.0, Vec3::Zero());
+  SolverOptions o;
+  o.seed_damping = -0.1;
+  o.global_tolerance = 0.0;
+  o.force_contact_stiffness = -1.0;
+  o.name = "xpbd";
+  EXPECT_NO_THROW((void)make_solver(o, m));
+  o.name = "pbd-seed";
+  expect_rejected(o, "solver.seed.damping");
+  o.name = "global-cholmod";
+  expect_rejected(o, "solver.global.tolerance");
+  o.name = "force-symplectic";
+  expect_rejected(o, "solver.force.contact_stiffness");
+  // The shared keys a family reads are checked for it, not for the others.
+  o = {};
+  o.iterations = 0;
+  o.name = "ref-bdf";  // on a soft chain (the references refuse rigid constraints)
+  EXPECT_NO_THROW((void)make_solver(o, chain_model(2, 0.1, 1.0, Vec3::Zero(), 1.0, 1e-3)));
+  o.name = "pbd";
+  expect_rejected(o, "solver.iterations");
+}
+
+// Every solver says why each step stopped, in its family's terms: the PBD families and
+// force-symplectic their fixed work, the references and the global solvers convergence, on a
+// soft chain that each of them runs well (the untrusted reasons have their tests beside the
+// solvers that give them: tests/reference/test_global_solver.cpp).
+TEST(Registry, EveryStepSaysWhyItStopped) {
+  const Model m = chain_model(3, 0.1, 1.0, Vec3(0, -9.81, 0), 1.0, 1e-4);
+  for (const SolverEntry& e : solver_catalog()) {
+    SolverOptions o = options_for(e.name);
+    o.force_contact_stiffness = 1e4;
+    std::unique_ptr<Solver> solver = make_solver(o, m);
+    State s = rest_state(m);
+    for (int k = 0; k < 3; ++k) {
+      const StepReport r = solver->step(m, s, 1e-3);
+      const bool fixed = e.family == SolverFamily::PbdSeed || e.family == SolverFamily::Pbd ||
+                         e.family == SolverFamily::Xpbd || e.family == SolverFamily::Force;
+      EXPECT_EQ(r.stop, fixed ? StopReason::FixedWork : StopReason::Converged) << e.name << " step " << k;
+      EXPECT_TRUE(stop_reason_info(r.stop).trusted) << e.name;
+    }
+  }
+  EXPECT_EQ(StepReport{}.stop, StopReason::None);
+  ASSERT_EQ(stop_reasons().size(), static_cast<size_t>(kStopReasonCount));
+  for (size_t i = 0; i < stop_reasons().size(); ++i)
+    EXPECT_EQ(static_cast<size_t>(stop_reasons()[i].reason), i) << stop_reasons()[i].name;
 }
 
 TEST(Registry, DtMustBePositive) {

@@ -12,6 +12,8 @@
 
 #include <gtest/gtest.h>
 
+#include "catalog/solver_catalog.hpp"
+
 #include "config/config.hpp"
 #include "config/internal.hpp"
 #include "tests/config/helpers.hpp"
@@ -175,16 +177,22 @@ TEST(Describe, DocsContainTheSchema) {
 namespace pbdbench::config {
 namespace {
 
+std::optional<SolverFamily> family_of(const Config& c) {
+  const SolverEntry* e = find_solver(c.get_string("solver.name"));
+  return e ? std::optional(e->family) : std::nullopt;
+}
+
 TEST(Describe, ForAReaderFitsTheWidthShowsTheSolversKeysAndWhatItReads) {
   const std::string chain = "[scene]\nkind = \"chain\"\nlinks = 4\nstiffness = 0.5\ncompliance = 1e-3\n";
   const Config xpbd = load_text(chain, "d.toml", sets({"solver.name=xpbd"}));
   const Config pbd = load_text(chain, "d.toml", sets({"solver.name=pbd"}));
   for (const Config* c : {&xpbd, &pbd}) {
-    std::istringstream lines(describe_config(*c, false, 100));
+    std::istringstream lines(describe_config(*c, false, 100, family_of(*c)));
     std::string line;
     while (std::getline(lines, line)) EXPECT_LE(line.size(), 100u) << line;
   }
-  const std::string x = describe_config(xpbd, false, 100), p = describe_config(pbd, false, 100);
+  const std::string x = describe_config(xpbd, false, 100, SolverFamily::Xpbd),
+                    p = describe_config(pbd, false, 100, SolverFamily::Pbd);
   EXPECT_TRUE(contains(x, "scene.compliance = 0.001"));
   EXPECT_FALSE(contains(x, "scene.stiffness ="));
   EXPECT_FALSE(contains(x, "solver.seed."));
@@ -206,19 +214,48 @@ TEST(Describe, ForAReaderFitsTheWidthShowsTheSolversKeysAndWhatItReads) {
   EXPECT_FALSE(contains(p, "k = 0.5"));
   // pbd with the explicit override: the stiffness keys, stated as an override.
   const Config pbd_k = load_text(chain, "d.toml", sets({"solver.name=pbd", "solver.pbd.material=stiffness"}));
-  const std::string pk = describe_config(pbd_k, false, 100);
+  const std::string pk = describe_config(pbd_k, false, 100, SolverFamily::Pbd);
   EXPECT_TRUE(contains(pk, "scene.stiffness = 0.5"));
   EXPECT_FALSE(contains(pk, "scene.compliance ="));
   EXPECT_TRUE(contains(pk, "solver.pbd.stiffness_correction"));
   EXPECT_TRUE(contains(flat(pk), "k = 0.5 (explicit override"));
   // pbd-seed: the listing's k.
   const Config seed = load_text(chain, "d.toml", sets({"solver.name=pbd-seed"}));
-  const std::string sk = describe_config(seed, false, 100);
+  const std::string sk = describe_config(seed, false, 100, SolverFamily::PbdSeed);
   EXPECT_TRUE(contains(sk, "scene.stiffness = 0.5"));
   EXPECT_TRUE(contains(flat(sk), "k = 0.5 (the seed listing's stiffness"));
-  const std::string all = describe_config(pbd, true, 100);
+  const std::string all = describe_config(pbd, true, 100, SolverFamily::Pbd);
   EXPECT_TRUE(contains(all, "scene.stiffness = 0.5"));
   EXPECT_TRUE(contains(all, "solver.seed."));
+  // The shared keys a family does not read are hidden too (the rows' families): ref-* reads no
+  // projection sweeps; without a family (a name the catalogue lacks) every solver key shows.
+  const Config ref = load_text(chain, "d.toml", sets({"solver.name=ref-bdf"}));
+  EXPECT_FALSE(contains(describe_config(ref, false, 100, SolverFamily::Reference), "solver.iterations ="));
+  EXPECT_TRUE(contains(describe_config(ref, false, 100, SolverFamily::Reference), "solver.ref.rtol ="));
+  EXPECT_TRUE(contains(describe_config(ref, false, 100), "solver.iterations ="));
+}
+
+// A key set for a solver that does not read it is accepted and named in a warning: the key,
+// where it was set, the solver and the families that read it; defaults are not warned about.
+TEST(Describe, KeysTheSolverDoesNotReadAreWarnedAbout) {
+  const std::string text = "solver.name = \"pbd\"\n[solver.seed]\nfixes = [\"D1\"]\n"
+                           "[scene]\nkind = \"chain\"\nlinks = 3\n";
+  const Config c = load_text(text, "w.toml", sets({"solver.global.tolerance=1e-6"}));
+  const std::vector<std::string> w = unread_solver_keys(c, SolverFamily::Pbd);
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_EQ(w[0], "solver.seed.fixes (w.toml:3) is set but pbd does not read it (an option of pbd-seed)");
+  EXPECT_TRUE(contains(w[1], "solver.global.tolerance (--set"));
+  EXPECT_TRUE(contains(w[1], "an option of global-*"));
+  EXPECT_TRUE(unread_solver_keys(c, SolverFamily::PbdSeed).size() == 1u);  // the global key
+  EXPECT_TRUE(unread_solver_keys(load_text(text, "w.toml"), SolverFamily::PbdSeed).empty());
+  EXPECT_TRUE(contains(describe_config(c, false, 100, SolverFamily::Pbd), "warning: solver.seed.fixes"));
+  // A shared key the family does not read: solver.iterations for a reference integrator.
+  const Config r = load_text("[solver]\nname = \"ref-bdf\"\niterations = 4\n"
+                             "[scene]\nkind = \"chain\"\n", "r.toml");
+  const std::vector<std::string> wr = unread_solver_keys(r, SolverFamily::Reference);
+  ASSERT_EQ(wr.size(), 1u);
+  EXPECT_TRUE(contains(wr[0], "solver.iterations (r.toml:3) is set but ref-bdf does not read it "
+                              "(an option of pbd-seed, pbd, xpbd)"));
 }
 
 // An FEM scene: what each solver uses for the FEM groups, said truthfully. pbd has no k for

@@ -247,6 +247,38 @@ class CliTest(unittest.TestCase):
         r = pbdbench("summary", "--csv", out)
         self.assertIn("energy_gain @", r.stdout)
 
+    def test_untrusted_stops_are_warned_and_counted_in_the_summary(self):
+        # One Newton iteration against a tolerance no step reaches: every step stops at the limit.
+        out = os.path.join(self.dir, "limited.h5")
+        r = pbdbench("run", "hanging_chain", "--solver", "global-cholmod", "--set", "solver.global.max_iterations=1",
+                     "--set", "solver.global.tolerance=1e-15", "--set", "time.duration=0.1", "--out", out, "--no-xdmf")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("WARNING solver_stop @1", r.stdout)
+        self.assertIn("iteration_limit", r.stdout)
+        r = pbdbench("summary", out)
+        self.assertIn("6 iteration_limit (not trusted) of 6 steps", r.stdout)
+        r = pbdbench("summary", "--csv", out)
+        self.assertIn("6 iteration_limit (not trusted) of 6 steps", r.stdout)
+        # A converging run: its steps are counted, with no warning.
+        out = os.path.join(self.dir, "pbd.h5")
+        r = pbdbench("run", "hanging_chain", "--solver", "pbd", "--set", "time.duration=0.1", "--out", out, "--no-xdmf")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("6 fixed_work of 6 steps", pbdbench("summary", out).stdout)
+
+    def test_options_of_another_family_are_warned_not_refused(self):
+        out = os.path.join(self.dir, "xpbd.h5")
+        r = pbdbench("run", "hanging_chain", "--solver", "xpbd", "--set", "solver.seed.damping=0.5",
+                     "--set", "time.duration=0.05", "--out", out, "--quiet", "--no-xdmf")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("warning: solver.seed.damping (--set solver.seed.damping=0.5) is set but xpbd does not read it "
+                      "(an option of pbd-seed)", r.stderr)
+        r = pbdbench("describe", "hanging_chain", "--set", "solver.name=xpbd", "--set", "solver.seed.damping=0.5")
+        self.assertIn("warning: solver.seed.damping", r.stdout)
+        # A solver the catalogue lacks is refused with the line that names it.
+        r = pbdbench("run", "hanging_chain", "--solver", "xbpd", "--out", out + ".no", "--quiet")
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertIn("solver.name = 'xbpd' is not one of", r.stderr)
+
     def test_list_describe_summary_series(self):
         r = pbdbench("list")
         self.assertEqual(r.returncode, 0)
@@ -288,7 +320,9 @@ class CliTest(unittest.TestCase):
         r = pbdbench("summary", out, viz)
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIn("passed over " + viz, r.stderr)
-        self.assertEqual([l.split()[0] for l in r.stdout.splitlines()[3:] if l.strip()], ["a"], r.stdout)
+        table = r.stdout.split("Why the steps stopped")[0]  # the rows, not the notes under them
+        self.assertEqual([l.split()[0] for l in table.splitlines()[3:] if l.strip()], ["a"], r.stdout)
+        self.assertIn("a: ", r.stdout.split("Why the steps stopped")[1])
         r = pbdbench("series", "--markdown")
         with open(os.path.join(SOURCE, "results", "README.md")) as f:
             self.assertIn(r.stdout.strip(), f.read())

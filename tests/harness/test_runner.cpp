@@ -191,8 +191,34 @@ TEST(Runner, ShadowGapShrinksAsIterationsGrowAndLeavesTheRunAlone) {
     EXPECT_EQ(std::bit_cast<std::uint64_t>(a[k]), std::bit_cast<std::uint64_t>(b[k]));
 }
 
+// config/ stands below the catalogue: the names are checked against it when the run starts (and
+// by whatever validates runs before starting any), naming the key and where it was set.
 TEST(Runner, ShadowMustBeAGlobalSolver) {
-  EXPECT_THROW(config::load("hanging_chain", {{"shadow.solver", "xpbd"}}), config::ConfigError);
+  const config::Config cfg = config::load("hanging_chain", {{"shadow.solver", "xpbd"}});
+  const fs::path out = temp_file("shadow_xpbd.h5");
+  try {
+    (void)run_config(cfg, out);
+    ADD_FAILURE() << "a shadow that is not a global solver was accepted";
+  } catch (const config::ConfigError& e) {
+    EXPECT_EQ(e.key(), "shadow.solver");
+    EXPECT_EQ(e.source().file, "--set shadow.solver=xpbd");
+    EXPECT_NE(std::string(e.what()).find("global-cholmod, global-cg, global-ceres"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Runner, SolverNameMustBeInTheCatalogue) {
+  const config::Config cfg = config::load_text("[solver]\nname = \"xbpd\"\n[scene]\nkind = \"chain\"\n", "bad_solver.toml");
+  try {
+    check_solver_names(cfg);
+    ADD_FAILURE() << "an unknown solver was accepted";
+  } catch (const config::ConfigError& e) {
+    EXPECT_EQ(e.key(), "solver.name");
+    EXPECT_EQ(e.source().file, "bad_solver.toml");
+    EXPECT_EQ(e.source().line, 2);
+    EXPECT_NE(std::string(e.what()).find("(did you mean 'xpbd'?)"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(check_solver_names(config::load("hanging_chain", {{"shadow.solver", "global-cg"}})));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -88,6 +88,17 @@ TEST(Layers, EveryLibraryFolderIsDeclared) {
   }
 }
 
+// config/ stands below the catalogue and links no solver family: its libraries (the closure of
+// pbdbench_config's links, from CMake) include solver_api/ and not the catalogue, nor reference/
+// (SUNDIALS, Ceres, CHOLMOD).
+TEST(Layers, ConfigLinksNoReferenceSolver) {
+  const std::string links = std::string(" ") + PBDBENCH_CONFIG_LINKS + " ";
+  EXPECT_NE(links.find(" pbdbench_solver_api "), std::string::npos) << links;
+  EXPECT_EQ(links.find(" pbdbench_catalog "), std::string::npos) << links;
+  EXPECT_EQ(links.find(" pbdbench_reference "), std::string::npos) << links;
+  EXPECT_LT(project_layers().at("config"), project_layers().at("catalog"));
+}
+
 // The scan itself: a tree with one include up, one sideways, and the allowed ones.
 TEST(Layers, TheScanFindsAnArrowUpAndSideways) {
   pbdbench::testing::TempDir dir("layers");

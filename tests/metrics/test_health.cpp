@@ -49,6 +49,30 @@ TEST(Health, EnergyGainedWithoutSourceIsWarnedAboveTheThreshold) {
   EXPECT_TRUE(small.warnings().empty());
 }
 
+// Steps whose solve stopped short of what the solver claims (an untrusted stop reason) are one
+// warning, solver_stop: the first such step, and the count per reason of the steps observed.
+TEST(Health, UntrustedSolverStopsAreCountedInOneWarning) {
+  const Model m = one_particle(0.0);
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  HealthMonitor h(m, s, s0, 10, true);
+  for (long k = 1; k <= 5; ++k) {
+    s.time = 0.1 * static_cast<double>(k);
+    h.observe(k, s, measure(m, s, b));
+    if (k >= 3) h.observe_untrusted_stop(k, s.time, k == 5 ? "line_search_failed" : "iteration_limit");
+  }
+  ASSERT_EQ(codes(h), std::vector<std::string>{"solver_stop"});
+  const RunWarning w = h.warnings()[0];
+  EXPECT_EQ(w.step, 3);
+  EXPECT_DOUBLE_EQ(w.time, 0.3);
+  EXPECT_EQ(w.message, "the solver's step stopped short of what it claims in 3 of 5 steps: 2 "
+                       "iteration_limit, 1 line_search_failed");
+  HealthMonitor clean(m, rest_state(m), s0, 10, true);
+  clean.observe(1, s, measure(m, s, b));
+  EXPECT_TRUE(clean.warnings().empty());
+}
+
 // The watched quantity is the motion energy (kinetic + gravitational) against the initial total:
 // elastic energy that grows without motion (an unconverged stiff constraint) is not a gain, a
 // stretched spring may turn its elastic energy into motion, and motion beyond it is warned.

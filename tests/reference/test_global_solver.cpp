@@ -45,7 +45,7 @@ TEST(GlobalSolvers, AreRegisteredAndListed) {
     EXPECT_EQ(entry->family, SolverFamily::Global) << name;
     EXPECT_TRUE(entry->can.shadow) << name;
   }
-  EXPECT_EQ(find_solver("xpbd")->family, SolverFamily::Pbd);
+  EXPECT_EQ(find_solver("xpbd")->family, SolverFamily::Xpbd);
 }
 
 // Twenty steps of a small damped cloth by each: every step converged, the same trajectory to far
@@ -68,6 +68,32 @@ TEST(GlobalSolvers, AgreeOnAWholeSimulationAndAreDeterministic) {
     EXPECT_LT((a.x - reference.x).cwiseAbs().maxCoeff(), 1e-6);
     EXPECT_NEAR(a.time, 20 * dt, 1e-12);
     EXPECT_EQ(a.step, 20);
+  }
+}
+
+// Why the step stopped: converged below solver.global.tolerance, or at the iteration limit (one
+// Newton iteration against a tolerance of 1e-15 m on a falling cloth), which is not trusted.
+TEST(GlobalSolvers, SayWhyTheStepStopped) {
+  const Scene s = scene("hanging_cloth", {"scene.resolution=[6, 6]"});
+  for (const std::string& name : kGlobal) {
+    SCOPED_TRACE(name);
+    SolverOptions o;
+    o.name = name;
+    auto converged = make_solver(o, s.model);
+    State state = s.initial;
+    EXPECT_EQ(converged->step(s.model, state, 1.0 / 60.0).stop, StopReason::Converged);
+    o.global_max_iterations = 1;
+    o.global_tolerance = 1e-15;
+    auto limited = make_solver(o, s.model);
+    state = s.initial;
+    const StepReport r = limited->step(s.model, state, 1.0 / 60.0);
+    EXPECT_EQ(r.convergence_failures, 1);
+    // global-ceres may end its one round on its own trust-region tests: stalled.
+    if (name == "global-ceres")
+      EXPECT_TRUE(r.stop == StopReason::IterationLimit || r.stop == StopReason::Stalled) << stop_reason_info(r.stop).name;
+    else
+      EXPECT_EQ(r.stop, StopReason::IterationLimit) << stop_reason_info(r.stop).name;
+    EXPECT_FALSE(stop_reason_info(r.stop).trusted);
   }
 }
 

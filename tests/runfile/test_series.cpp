@@ -55,8 +55,8 @@ TEST(runfile_series, RequiredSeriesInOrder) {
       "potential_energy", "elastic_energy", "total_energy", "linear_momentum",
       "angular_momentum", "penetration_max", "penetration_count", "height_min", "sunk_count",
       "sunk_depth", "velocity_hf_rms", "max_speed", "extent",
-      "tip_displacement", "support_force", "pendulum_angle", "substeps", "iterations", "contacts", "active_contacts", "skipped", "residual_g",
-      "residual_h", "time_predict", "time_contacts", "time_project", "time_velocity",
+      "tip_displacement", "support_force", "pendulum_angle", "substeps", "iterations", "contacts", "active_contacts", "skipped", "stop_reason",
+      "residual_g", "residual_h", "time_predict", "time_contacts", "time_project", "time_velocity",
       "wall_step"};
   const auto all = names();
   ASSERT_FALSE(all.empty());
@@ -132,6 +132,7 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   r.contacts = 23;
   r.active_contacts = 24;
   r.skipped = 25;
+  r.stop = StopReason::LineSearchFailed;
   r.residual_g = 26.5;
   r.residual_h = 27.5;
   r.time_predict = 28.5;
@@ -175,7 +176,7 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"linear_momentum", {11.5, 12.5, 13.5}}, {"angular_momentum", {14.5, 15.5, 16.5}},
       {"penetration_max", {17.5}}, {"penetration_count", {18}}, {"max_speed", {19.5}},
       {"extent", {20.5}}, {"substeps", {21}}, {"iterations", {22}}, {"contacts", {23}},
-      {"active_contacts", {24}}, {"skipped", {25}}, {"residual_g", {26.5}},
+      {"active_contacts", {24}}, {"skipped", {25}}, {"stop_reason", {5}}, {"residual_g", {26.5}},
       {"residual_h", {27.5}}, {"time_predict", {28.5}}, {"time_contacts", {29.5}},
       {"time_project", {30.5}}, {"time_velocity", {31.5}}, {"wall_step", {34.5}},
       {"ref_steps", {35}}, {"newton_iterations", {36}}, {"linear_setups", {37}},
@@ -250,6 +251,20 @@ TEST(runfile_series, ReadmeContainsTheTableVerbatim) {
   EXPECT_NE(text.str().find(series_markdown()), std::string::npos)
       << path << " does not contain series_markdown() verbatim; paste this:\n"
       << series_markdown();
+}
+
+// The stop_reason series' doc names every reason with the value the series stores, so that a
+// reader of the run file needs no source: it cannot drift from the table (solver_api/).
+TEST(runfile_series, StopReasonDocNamesEveryReason) {
+  const SeriesSpec* spec = nullptr;
+  for (const SeriesSpec& s : series_table())
+    if (s.name == "stop_reason") spec = &s;
+  ASSERT_NE(spec, nullptr);
+  const std::string doc(spec->doc);
+  for (const StopReasonInfo& info : stop_reasons()) {
+    const std::string entry = std::to_string(static_cast<int>(info.reason)) + " " + info.name;
+    EXPECT_NE(doc.find(entry), std::string::npos) << entry;
+  }
 }
 
 }  // namespace

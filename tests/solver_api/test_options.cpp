@@ -129,5 +129,59 @@ TEST(OptionRows, ValidateUsesTheRowsBounds) {
   EXPECT_THROW(find_solver_option("solver.order")->set(e, std::string("sideways")), std::invalid_argument);
 }
 
+// Each row says which families read it: the [solver.<family>] tables belong to their family
+// alone, the shared keys to the families that read them.
+TEST(SolverFamilies, RowsNameTheFamiliesThatReadThem) {
+  auto applies = [](const char* key, SolverFamily f) {
+    const OptionRow* r = find_solver_option(key);
+    EXPECT_NE(r, nullptr) << key;
+    return r != nullptr && option_applies(*r, f);
+  };
+  const std::pair<const char*, SolverFamily> tables[] = {
+      {"solver.seed.", SolverFamily::PbdSeed}, {"solver.pbd.", SolverFamily::Pbd},
+      {"solver.xpbd.", SolverFamily::Xpbd},    {"solver.force.", SolverFamily::Force},
+      {"solver.ref.", SolverFamily::Reference}, {"solver.global.", SolverFamily::Global}};
+  for (const OptionRow& r : solver_option_rows()) {
+    EXPECT_NE(r.families, 0) << r.key << " is read by no family";
+    for (const auto& [prefix, family] : tables)
+      if (r.key.rfind(prefix, 0) == 0) {
+        EXPECT_EQ(r.families, family_bit(family)) << r.key;
+      }
+  }
+  EXPECT_EQ(find_solver_option("solver.name")->families, kAllFamilies);
+  EXPECT_EQ(families_text(*find_solver_option("solver.name")), "every solver");
+  EXPECT_TRUE(applies("solver.iterations", SolverFamily::PbdSeed));
+  EXPECT_FALSE(applies("solver.iterations", SolverFamily::Global));
+  EXPECT_TRUE(applies("solver.precision", SolverFamily::Xpbd));
+  EXPECT_FALSE(applies("solver.precision", SolverFamily::PbdSeed));  // float by its D10
+  EXPECT_TRUE(applies("solver.substeps", SolverFamily::Global));
+  EXPECT_FALSE(applies("solver.contact_margin", SolverFamily::Reference));
+  EXPECT_EQ(families_text(*find_solver_option("solver.threads")), "pbd, xpbd");
+}
+
+// validate(family) checks only the options that family reads: a bad value of another family's
+// option is not its business (config/ warns when a scenario sets one); validate() checks every
+// row.
+TEST(SolverFamilies, ValidateChecksOnlyTheFamilysOptions) {
+  SolverOptions o;
+  o.seed_damping = 2.0;
+  o.global_tolerance = -1.0;
+  o.seed_dynamic_inverse_mass = o.seed_graded_inverse_mass = true;
+  EXPECT_EQ(o.validate(SolverFamily::Xpbd), "");
+  EXPECT_EQ(o.validate(SolverFamily::PbdSeed), "solver.seed.damping = 2 is above the maximum 1");
+  EXPECT_EQ(o.validate(), "solver.seed.damping = 2 is above the maximum 1");
+  o.seed_damping = 0.5;
+  EXPECT_NE(o.validate(SolverFamily::PbdSeed).find("choose one"), std::string::npos);
+  EXPECT_EQ(o.validate(SolverFamily::Global), "solver.global.tolerance = -1 must be greater than 0");
+  o.global_tolerance = 1e-9;
+  EXPECT_EQ(o.validate(SolverFamily::Global), "");
+  EXPECT_NE(o.validate().find("choose one"), std::string::npos);
+  o.seed_dynamic_inverse_mass = false;
+  o.iterations = 0;
+  EXPECT_EQ(o.validate(SolverFamily::Reference), "");  // ref-* do not read solver.iterations
+  EXPECT_EQ(o.validate(SolverFamily::Pbd), "solver.iterations = 0 is below the minimum 1");
+  EXPECT_EQ(std::string(to_string(SolverFamily::Reference)), "ref-*");
+}
+
 }  // namespace
 }  // namespace pbdbench::test
