@@ -144,6 +144,51 @@ SolverOptions options_for(const std::string& name) {
   return o;
 }
 
+TEST(SurfaceContact, SparseBlockHoldsTheClothInEveryProjectionOrder) {
+  // The projection orders reach the contact through different code (Gauss-Seidel in sequence,
+  // by colour, Jacobi with its correction buffers; float; threads): each keeps the cloth on the
+  // block (its centre above the block's top vertex), every gap above minus half the thickness
+  // (1 cm), under pbd and xpbd, except pbd with Jacobi sweeps, which lets it through (below).
+  const ProjectionOrder orders[] = {ProjectionOrder::Sequential, ProjectionOrder::Reversed,
+                                    ProjectionOrder::Shuffled, ProjectionOrder::Colored,
+                                    ProjectionOrder::Jacobi, ProjectionOrder::GroupedShuffled};
+  const Model m = cloth_on_sparse_block(true);
+  for (const char* name : kSolvers)
+    for (int run = 0; run < 8; ++run) {
+      // The six orders in double, then sequential in float and colored with 2 threads.
+      const ProjectionOrder order = run < 6 ? orders[run] : run == 6 ? orders[0] : orders[3];
+      SolverOptions o = options_for(name);
+      o.order = order;
+      if (run == 6) o.precision = Precision::Float;
+      if (run == 7) o.threads = 2;
+      if (order == ProjectionOrder::Jacobi) o.iterations = 40;  // Jacobi converges slower
+      auto solver = make_solver(o, m);
+      State s = rest_state(m);
+      double worst = 1e300, lowest_centre = 1e300;
+      for (int k = 0; k < 40; ++k) {
+        solver->step(m, s, 1.0 / 60.0);
+        worst = std::min(worst, min_surface_gap(m, s.x));
+      }
+      for (int p = 27; p < m.particle_count(); ++p)
+        if (std::abs(s.x(p, 0)) < 0.1 && std::abs(s.x(p, 2)) < 0.1)
+          lowest_centre = std::min(lowest_centre, s.x(p, 1));
+      // On the block as it is now (pbd's Jacobi run leaves the block 1 to 2 cm lower: softer).
+      const double top = s.x.topRows(27).col(1).maxCoeff();
+      std::printf("%s, run %d (order %d): lowest centre particle %.4f m, block top %.4f m, "
+                  "smallest gap %.3e m\n",
+                  name, run, static_cast<int>(order), lowest_centre, top, worst);
+      if (std::string(name) == "pbd" && order == ProjectionOrder::Jacobi) {
+        // A result, not a pass: pbd's Jacobi sweeps (corrections averaged over each particle's
+        // constraints) let cloth particles through the block's top face (the lowest centre
+        // particle ends 7 mm below the block's top vertex), and once through, the unsigned gap
+        // pushes them on inwards. Recorded here so that a change shows; not a requirement.
+        continue;
+      }
+      EXPECT_GT(lowest_centre, top) << name << ", run " << run;
+      EXPECT_GT(worst, -0.005) << name << ", run " << run;
+    }
+}
+
 TEST(SurfaceContact, SparseBlockStopsTheClothOnlyWithVertexTriangleContact) {
   for (const char* name : kSolvers) {
     for (bool surface : {true, false}) {
