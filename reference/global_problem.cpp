@@ -65,8 +65,8 @@ void pattern_product(const SparsityPattern& p, const std::vector<double>& values
 GlobalProblem::GlobalProblem(const Model& model) : model_(&model), energy_(model) {
   if (model.surface_contact || model.self_contact)
     throw std::invalid_argument(
-        "no global solver simulates vertex-triangle contact (scene.surface_contact or scene.self_contact): pbd, "
-        "xpbd and ref-be do");
+        "no global solver simulates vertex-triangle contact (scene.surface_contact or "
+        "scene.self_contact): pbd and xpbd do");
   for (size_t k = 0; k < model.elements.size(); ++k)
     if (!fem::has_constraint_form(model.elements[k].material))
       throw std::invalid_argument(

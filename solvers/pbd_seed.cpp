@@ -692,7 +692,7 @@ std::unique_ptr<Solver> make_pbd_seed_solver(const SolverOptions& options, const
   if (model.surface_contact || model.self_contact)
     throw std::invalid_argument(
         "pbd-seed does not simulate vertex-triangle contact (scene.surface_contact or "
-        "scene.self_contact; the listing has none): pbd, xpbd and ref-be do");
+        "scene.self_contact; the listing has none): pbd and xpbd do");
   // A FEM element is a material (Pa); PBD's per-constraint stiffness k is not one.
   const bool fem_constraints = std::any_of(model.constraints.begin(), model.constraints.end(),
                                            [](const Constraint& c) { return is_fem_kind(c.kind); });
