@@ -792,6 +792,7 @@ void append_body(const Config& config, std::size_t index, Scene& scene) {
     st.v.row(np + i) = v.transpose();
     m.inv_mass.push_back(bm.inv_mass[static_cast<std::size_t>(i)]);
     m.radius.push_back(bm.radius[static_cast<std::size_t>(i)]);
+    m.particle_body.push_back(static_cast<int>(index) + 1);
   }
   for (auto e : bm.edges) m.edges.push_back({e[0] + np, e[1] + np});
   for (auto t : bm.triangles) m.triangles.push_back({t[0] + np, t[1] + np, t[2] + np});
@@ -824,7 +825,11 @@ void append_body(const Config& config, std::size_t index, Scene& scene) {
 
 Scene build_scene(const Config& config) {
   Scene scene = SceneBuilder(config).build();
+  scene.model.surface_contact = config.get_bool("scene.surface_contact");
+  scene.model.self_contact = config.get_bool("scene.self_contact");
+  scene.model.surface_friction = config.get_double("scene.surface_friction");
   if (config.bodies.empty()) return scene;
+  scene.model.particle_body.assign(static_cast<std::size_t>(scene.model.particle_count()), 0);
   for (std::size_t i = 0; i < config.bodies.size(); ++i) append_body(config, i, scene);
   State fresh = rest_state(scene.model);  // every array of the state sized for the whole model
   fresh.x = scene.initial.x;

@@ -475,6 +475,17 @@ const std::vector<KeySpec>& common_keys() {
         vec3("gravity", model.gravity, "m/s^2", kAny, "gravitational acceleration"),
         text("scene.kind", "particle", kind_names(),
              "the kind of scene; it decides which other scene.* keys exist"),
+        boolean("scene.surface_contact", false,
+                "vertex-triangle contact between bodies: every particle against the surface "
+                "triangles (a cloth's, a tet body's boundary) of the other bodies ([[body]] "
+                "entries and the scene's own); gap |x - q| - (r_p + the triangle's largest r); "
+                "pbd, xpbd and their variants (docs/scenarios.md)"),
+        boolean("scene.self_contact", false,
+                "vertex-triangle contact within a body without tets (a cloth against itself): "
+                "its particles against its own triangles, those touching the particle or its "
+                "neighbours excepted; pbd, xpbd and their variants (docs/scenarios.md)"),
+        real("scene.surface_friction", 0.0, "1", at_least(0),
+             "Coulomb friction coefficient of the vertex-triangle contacts"),
         real("time.dt", run.dt, "s", above_upto(0, 1), "time step of one solver step"),
         real("time.duration", run.duration, "s", above_upto(0, 1e6),
              "simulated time; steps = round(duration / dt)"),

@@ -1,5 +1,7 @@
 #include "core/contacts.hpp"
 
+#include "core/surface_contact.hpp"
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -15,6 +17,7 @@ const char* to_string(ContactKind kind) {
     case ContactKind::Sphere: return "sphere";
     case ContactKind::Particle: return "particle";
     case ContactKind::Mesh: return "mesh";
+    case ContactKind::Triangle: return "triangle";
   }
   return "unknown";
 }
@@ -163,6 +166,9 @@ std::vector<Contact> find_contacts(const Model& model, const Points& x, double t
     }
   }
   if (model.particle_contact) find_particle_pairs(model, x, margin, out);
+  if (model.surface_contact || model.self_contact)
+    for (const auto& [p, tri] : find_surface_contacts(model, x, margin))
+      out.push_back({ContactKind::Triangle, p, tri});
   return out;
 }
 
@@ -202,6 +208,15 @@ ConstraintEval eval_contact(const Model& model, const Contact& contact, const Po
       }
       return e;
     }
+    case ContactKind::Triangle: {
+      const auto& tri = model.triangles[static_cast<size_t>(contact.b)];
+      const PointTriangle pt = point_triangle(xa, x.row(tri[0]).transpose(), x.row(tri[1]).transpose(),
+                                              x.row(tri[2]).transpose());
+      e.C = pt.distance - surface_contact_thickness(model, contact.a, contact.b);
+      e.grad[0] = pt.normal;
+      for (int k = 0; k < 3; ++k) e.grad[static_cast<size_t>(k + 1)] = -pt.bary[k] * pt.normal;
+      return e;
+    }
     case ContactKind::Mesh: {
       const MeshCollider& mesh = model.meshes[static_cast<size_t>(contact.b)];
       const MeshDistance md = mesh_distance(mesh, xa - mesh_offset(model, mesh, t));
@@ -220,6 +235,7 @@ double contact_restitution(const Model& model, const Contact& c) {
     case ContactKind::Sphere: return model.spheres[static_cast<size_t>(c.b)].restitution;
     case ContactKind::Particle: return model.particle_restitution;
     case ContactKind::Mesh: return model.meshes[static_cast<size_t>(c.b)].restitution;
+    case ContactKind::Triangle: return model.particle_restitution;
   }
   return 0.0;
 }
@@ -230,8 +246,24 @@ double contact_friction(const Model& model, const Contact& c) {
     case ContactKind::Sphere: return model.spheres[static_cast<size_t>(c.b)].friction;
     case ContactKind::Particle: return model.particle_friction;
     case ContactKind::Mesh: return model.meshes[static_cast<size_t>(c.b)].friction;
+    case ContactKind::Triangle: return model.surface_friction;
   }
   return 0.0;
+}
+
+int contact_particles(const Model& model, const Contact& c, std::array<int, 4>& out) {
+  out = {c.a, -1, -1, -1};
+  switch (c.kind) {
+    case ContactKind::Particle:
+      out[1] = c.b;
+      return 2;
+    case ContactKind::Triangle: {
+      const auto& tri = model.triangles[static_cast<size_t>(c.b)];
+      out = {c.a, tri[0], tri[1], tri[2]};
+      return 4;
+    }
+    default: return 1;
+  }
 }
 
 Vec3 contact_surface_velocity(const Model& model, const Contact& c, const Points& v, double t) {
@@ -248,6 +280,10 @@ Vec3 contact_surface_velocity(const Model& model, const Contact& c, const Points
       if (m.motion < 0) return Vec3::Zero();
       return motion_velocity(model.motions[static_cast<size_t>(m.motion)], t);
     }
+    case ContactKind::Triangle:
+      // The closest point's velocity needs the positions: the velocity pass takes the
+      // triangle's vertices' velocities through the gradient (solver_api/velocity_pass.cpp).
+      return Vec3::Zero();
   }
   return Vec3::Zero();
 }

@@ -169,6 +169,13 @@ struct Model {
   bool particle_contact = false;        // contacts between particles not joined by a constraint
   double particle_restitution = 0.0;    // e for particle-particle contacts
   double particle_friction = 0.0;       // mu for particle-particle contacts
+  // Vertex-triangle contact (core/surface_contact.hpp): particles against the triangles above;
+  // e: particle_restitution.
+  bool surface_contact = false;         // between bodies (particle_body), both moving
+  bool self_contact = false;            // within a body without tets (a cloth against itself)
+  double surface_friction = 0.0;        // mu for vertex-triangle contacts
+  std::vector<int> particle_body;       // (n) 0: the scene's own body, i + 1: [[body]] entry i;
+                                        // empty: one body
 
   // FEM elements (their XPBD form, for the stable neo-Hookean material, is a pair of FEM-kind
   // constraints per element in `constraints`).

@@ -88,6 +88,15 @@ std::vector<ModelProblem> check_model(const Model& model, const std::vector<int>
   if (model.radius.size() != static_cast<size_t>(n))
     out.add("radius has " + std::to_string(model.radius.size()) + " entries for " + std::to_string(n) +
             " particles");
+  if (!model.particle_body.empty() && model.particle_body.size() != static_cast<size_t>(n))
+    out.add("particle_body has " + std::to_string(model.particle_body.size()) + " entries for " +
+            std::to_string(n) + " particles");
+  for (size_t i = 0; i < model.particle_body.size(); ++i)
+    if (model.particle_body[i] < 0) {
+      out.add("particle " + std::to_string(i) + ": body " + std::to_string(model.particle_body[i]) +
+              " is negative");
+      break;
+    }
   for (int i = 0; i < n; ++i) {
     const Vec3 x = model.rest_positions.row(i);
     const std::string name = "particle " + std::to_string(i);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace pbdbench::barrier {
 
@@ -121,6 +122,8 @@ Gap gap(const Model& model, const Contact& c, const Points& x, double t) {
       out.hess.bottomRightCorner<3, 3>() = H;
       break;
     }
+    case ContactKind::Triangle:  // refused by make_ref_be_contact
+      throw std::logic_error("ref-be: a vertex-triangle contact reached the barrier");
   }
   return out;
 }

@@ -63,6 +63,10 @@ void pattern_product(const SparsityPattern& p, const std::vector<double>& values
 }  // namespace
 
 GlobalProblem::GlobalProblem(const Model& model) : model_(&model), energy_(model) {
+  if (model.surface_contact || model.self_contact)
+    throw std::invalid_argument(
+        "no global solver simulates vertex-triangle contact (scene.surface_contact or "
+        "scene.self_contact): pbd and xpbd do");
   for (size_t k = 0; k < model.elements.size(); ++k)
     if (!fem::has_constraint_form(model.elements[k].material))
       throw std::invalid_argument(
@@ -236,6 +240,8 @@ Mat12 GlobalProblem::row_hessian(int r, const Points& x) const {
       out.block<3, 3>(0, 0) = (md.distance < 0.0 ? -1.0 : 1.0) * md.hessian;
       return out;
     }
+    case ContactKind::Triangle:  // refused by the constructor
+      throw std::logic_error("global problem: a vertex-triangle contact reached the Hessian");
   }
   return Mat12::Zero();
 }

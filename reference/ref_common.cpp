@@ -42,6 +42,7 @@ void check_reference_model(const std::string& solver, const Model& model,
     if (!model.spheres.empty()) what.push_back(std::to_string(model.spheres.size()) + " sphere collider(s)");
     if (!model.meshes.empty()) what.push_back(std::to_string(model.meshes.size()) + " mesh collider(s)");
     if (model.particle_contact) what.push_back("particle contact");
+    if (model.surface_contact || model.self_contact) what.push_back("vertex-triangle contact");
     if (!what.empty()) {
       std::ostringstream os;
       os << solver << " does not simulate contacts, and the scene has ";
@@ -58,7 +59,7 @@ void check_reference_model(const std::string& solver, const Model& model,
 
 bool has_contact(const Model& model) {
   return !model.planes.empty() || !model.spheres.empty() || !model.meshes.empty() ||
-         model.particle_contact;
+         model.particle_contact || model.surface_contact || model.self_contact;
 }
 
 LinearSolverKind linear_solver_kind(const SolverOptions& options) {

@@ -419,6 +419,13 @@ std::unique_ptr<Solver> make_ref_be_contact(const SolverOptions& options, const 
   SolverOptions checked = options;
   checked.ref_ignore_colliders = true;  // contact is simulated here; the other checks stay
   check_reference_model("ref-be", model, checked);
+  if (model.surface_contact || model.self_contact)
+    throw std::invalid_argument(
+        std::string("ref-be does not simulate vertex-triangle contact, and the scene has it on (") +
+        (model.surface_contact ? "scene.surface_contact" : "scene.self_contact") +
+        " = true): its barrier and collision check cover planes, spheres, mesh colliders and "
+        "particle pairs, not a particle against a body's surface triangles (issue 17); run pbd "
+        "or xpbd, or set solver.ref.ignore_colliders = true to run ref-be without any contact");
   return std::make_unique<RefBeContact>(options, model);
 }
 

@@ -64,6 +64,8 @@ void check_model(const SolverOptions& options, const Model& model) {
                                   std::to_string(model.meshes.size()) + ")" + hint);
     if (model.particle_contact)
       throw std::invalid_argument(options.name + ": the model has particle contact on" + hint);
+    if (model.surface_contact || model.self_contact)
+      throw std::invalid_argument(options.name + ": the model has vertex-triangle contact on" + hint);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 
@@ -19,15 +20,35 @@ void velocity_pass(const Model& model, const std::vector<Contact>& contacts,
     const ConstraintEval e = eval_contact(model, c, x, t_end);
     if (!e.valid) continue;
     if (!(e.C <= kTouchingTolerance || lambda[j] > 0.0)) continue;
-    const bool pair = c.kind == ContactKind::Particle;
-    const double wa = model.inv_mass[static_cast<size_t>(c.a)];
-    const double wb = pair ? model.inv_mass[static_cast<size_t>(c.b)] : 0.0;
-    const double W = wa + wb;
-    if (!(W > 0.0)) continue;
+    // The contact's particles and their weights along n: s_i = grad_i . n (1 for a, -1 for a
+    // pair's b, -u, -v, -w for a triangle's vertices); the relative velocity is sum s_i v_i
+    // minus a collider's surface velocity, and W = sum w_i s_i^2 its inverse mass along n.
+    std::array<int, 4> ps{};
+    const int count = contact_particles(model, c, ps);
     const Vec3 n = e.grad[0];
-    const Vec3 v_rel = Vec3(v.row(c.a)) - contact_surface_velocity(model, c, v, t_end);
-    const Vec3 v_rel_before =
-        Vec3(v_before.row(c.a)) - contact_surface_velocity(model, c, v_before, t_end);
+    std::array<double, 4> s{}, w{};
+    double W = 0.0;
+    for (int i = 0; i < count; ++i) {
+      // Exactly 1 and -1 for a and a pair's b (n . n is 1 only to round-off).
+      s[static_cast<size_t>(i)] = i == 0 ? 1.0
+                                  : c.kind == ContactKind::Particle
+                                      ? -1.0
+                                      : e.grad[static_cast<size_t>(i)].dot(n);
+      w[static_cast<size_t>(i)] = model.inv_mass[static_cast<size_t>(ps[static_cast<size_t>(i)])];
+      W += w[static_cast<size_t>(i)] * s[static_cast<size_t>(i)] * s[static_cast<size_t>(i)];
+    }
+    if (!(W > 0.0)) continue;
+    Vec3 v_rel = -contact_surface_velocity(model, c, v, t_end);
+    Vec3 v_rel_before = -contact_surface_velocity(model, c, v_before, t_end);
+    if (c.kind == ContactKind::Particle) {  // contact_surface_velocity is v_b
+      v_rel = Vec3(v.row(c.a)) - Vec3(v.row(c.b));
+      v_rel_before = Vec3(v_before.row(c.a)) - Vec3(v_before.row(c.b));
+    } else {
+      for (int i = 0; i < count; ++i) {
+        v_rel += s[static_cast<size_t>(i)] * Vec3(v.row(ps[static_cast<size_t>(i)]));
+        v_rel_before += s[static_cast<size_t>(i)] * Vec3(v_before.row(ps[static_cast<size_t>(i)]));
+      }
+    }
     const double vn = n.dot(v_rel);
     const double vn_before = n.dot(v_rel_before);
     const Vec3 vt = v_rel - vn * n;
@@ -44,11 +65,10 @@ void velocity_pass(const Model& model, const std::vector<Contact>& contacts,
     // approach, which stops resting contacts from jittering.
     const double e_eff = std::abs(vn_before) <= rest_speed ? 0.0 : contact_restitution(model, c);
     dv += (-vn + std::max(-e_eff * vn_before, 0.0)) * n;
-    v.row(c.a) += ((wa / W) * dv).transpose();
-    if (pair) v.row(c.b) -= ((wb / W) * dv).transpose();
-    if (single) {
-      round_row_to_float(v, c.a);
-      if (pair) round_row_to_float(v, c.b);
+    for (int i = 0; i < count; ++i) {
+      const double f = w[static_cast<size_t>(i)] * s[static_cast<size_t>(i)] / W;
+      v.row(ps[static_cast<size_t>(i)]) += (f * dv).transpose();
+      if (single) round_row_to_float(v, ps[static_cast<size_t>(i)]);
     }
   }
 }

@@ -10,6 +10,7 @@
 
 #include "core/cancel.hpp"
 #include "core/constraint_functions.hpp"
+#include "core/surface_contact.hpp"
 #include "solvers/kernels.hpp"
 #include "solvers/pbd_material.hpp"
 #include "solvers/projection_kernels.hpp"
@@ -51,7 +52,12 @@ struct ContactItem {
   bool valid = true;             // Plane: |n| > 0
   const MeshCollider* mesh = nullptr;  // Mesh: the collider (g: its offset at t_end; r: r_a);
                                        // C and grad from its signed distance at every projection
+  std::array<std::int32_t, 3> t{-1, -1, -1};  // Triangle: its vertices (r: the thickness)
+  std::array<T, 3> wt{0, 0, 0};               // their inverse masses, 1/kg
 };
+
+// Corrections per contact in the Jacobi buffer: up to four particles (a vertex-triangle contact).
+constexpr int kContactDx = 12;
 
 template <class T>
 class Program final : public CompiledProjection {
@@ -206,7 +212,7 @@ class Program final : public CompiledProjection {
         contact_order_[static_cast<size_t>(k)] = order_ == ProjectionOrder::Reversed ? c - 1 - k : k;
     }
     if (order_ == ProjectionOrder::Jacobi) {
-      contact_dx_.assign(6 * contacts.size(), T(0));
+      contact_dx_.assign(kContactDx * contacts.size(), T(0));
       contact_dlambda_.assign(contacts.size(), T(0));
     }
   }
@@ -511,6 +517,15 @@ class Program final : public CompiledProjection {
         c.wb = static_cast<T>(model.inv_mass[static_cast<size_t>(contact.b)]);
         c.r = static_cast<T>(ra + model.radius[static_cast<size_t>(contact.b)]);
         break;
+      case ContactKind::Triangle: {
+        const auto& tri = model.triangles[static_cast<size_t>(contact.b)];
+        for (int k = 0; k < 3; ++k) {
+          c.t[static_cast<size_t>(k)] = tri[static_cast<size_t>(k)];
+          c.wt[static_cast<size_t>(k)] = static_cast<T>(model.inv_mass[static_cast<size_t>(tri[static_cast<size_t>(k)])]);
+        }
+        c.r = static_cast<T>(surface_contact_thickness(model, contact.a, contact.b));
+        break;
+      }
       case ContactKind::Mesh: {
         const MeshCollider& m = model.meshes[static_cast<size_t>(contact.b)];
         c.mesh = &m;
@@ -554,7 +569,7 @@ class Program final : public CompiledProjection {
   }
 
   // Contact k: C at the current positions, its projection (pbd: k = 1; xpbd: the multiplier kept
-  // >= 0), whether it is violated. With Jacobi the correction goes to contact_dx_ (6 per contact)
+  // >= 0), whether it is violated. With Jacobi the correction goes to contact_dx_ (12 per contact)
   // and the multiplier's change to contact_dlambda_. Returns 1 when skipped.
   template <bool Jacobi>
   int project_contact(int k) {
@@ -564,6 +579,7 @@ class Program final : public CompiledProjection {
     V3<T> xb{};
     T C = 0;
     V3<T> ga{}, gb{};
+    std::array<T, 3> bary{T(0), T(0), T(0)};  // Triangle: the closest point's coordinates
     bool valid = c.valid;
     switch (c.kind) {
       case ContactKind::Plane:
@@ -590,6 +606,19 @@ class Program final : public CompiledProjection {
         }
         break;
       }
+      case ContactKind::Triangle: {
+        // The closest point in double, as the mesh's; grad: n for a, -bary_k n for the vertices.
+        auto dv = [](const V3<T>& v) {
+          return Vec3(static_cast<double>(v.x), static_cast<double>(v.y), static_cast<double>(v.z));
+        };
+        const PointTriangle pt = point_triangle(dv(xa), dv(load3(P, c.t[0])), dv(load3(P, c.t[1])),
+                                                dv(load3(P, c.t[2])));
+        C = static_cast<T>(pt.distance) - c.r;
+        ga = V3<T>{static_cast<T>(pt.normal.x()), static_cast<T>(pt.normal.y()),
+                   static_cast<T>(pt.normal.z())};
+        for (int k = 0; k < 3; ++k) bary[static_cast<size_t>(k)] = static_cast<T>(pt.bary[k]);
+        break;
+      }
       case ContactKind::Mesh: {
         // The signed distance in double (the BVH's precision), its value and gradient in T.
         const V3<T> d = xa - c.g;
@@ -603,13 +632,16 @@ class Program final : public CompiledProjection {
       }
     }
     if constexpr (Jacobi) {
-      for (int i = 0; i < 6; ++i) contact_dx_[static_cast<size_t>(6 * k + i)] = T(0);
+      for (int i = 0; i < kContactDx; ++i) contact_dx_[static_cast<size_t>(kContactDx * k + i)] = T(0);
       contact_dlambda_[static_cast<size_t>(k)] = T(0);
     }
     if (!valid) return 1;
     if (!(C < T(0))) return 0;
     contact_active_[static_cast<size_t>(k)] = 1;
-    const T wsum = c.wa * dot(ga, ga) + c.wb * dot(gb, gb);
+    T wsum = c.wa * dot(ga, ga) + c.wb * dot(gb, gb);
+    if (c.kind == ContactKind::Triangle)
+      for (int i = 0; i < 3; ++i)
+        wsum = wsum + c.wt[static_cast<size_t>(i)] * bary[static_cast<size_t>(i)] * bary[static_cast<size_t>(i)] * dot(ga, ga);
     if (!(wsum > T(0))) return 1;
     T dlambda;
     T& lambda = contact_lambda_[static_cast<size_t>(k)];
@@ -620,15 +652,30 @@ class Program final : public CompiledProjection {
     }
     const V3<T> da = (c.wa * dlambda) * ga;
     const V3<T> db = (c.wb * dlambda) * gb;
+    // Triangle: vertex k moves by w_k dlambda (-bary_k n).
+    std::array<V3<T>, 3> dt{};
+    if (c.kind == ContactKind::Triangle)
+      for (int i = 0; i < 3; ++i)
+        dt[static_cast<size_t>(i)] = (-(c.wt[static_cast<size_t>(i)] * dlambda * bary[static_cast<size_t>(i)])) * ga;
     if constexpr (Jacobi) {
-      T* q = contact_dx_.data() + 6 * k;
+      T* q = contact_dx_.data() + kContactDx * k;
       q[0] = da.x, q[1] = da.y, q[2] = da.z;
       q[3] = db.x, q[4] = db.y, q[5] = db.z;
+      if (c.kind == ContactKind::Triangle)
+        for (int i = 0; i < 3; ++i) {
+          q[3 + 3 * i] = dt[static_cast<size_t>(i)].x;
+          q[4 + 3 * i] = dt[static_cast<size_t>(i)].y;
+          q[5 + 3 * i] = dt[static_cast<size_t>(i)].z;
+        }
       contact_dlambda_[static_cast<size_t>(k)] = dlambda;
     } else {
       lambda = lambda + dlambda;
       if (c.wa != T(0)) store3(P, c.a, xa + da);
       if (c.kind == ContactKind::Particle && c.wb != T(0)) store3(P, c.b, load3(P, c.b) + db);
+      if (c.kind == ContactKind::Triangle)
+        for (int i = 0; i < 3; ++i)
+          if (c.wt[static_cast<size_t>(i)] != T(0))
+            store3(P, c.t[static_cast<size_t>(i)], load3(P, c.t[static_cast<size_t>(i)]) + dt[static_cast<size_t>(i)]);
     }
     return 0;
   }
@@ -730,11 +777,14 @@ class Program final : public CompiledProjection {
   void jacobi_contacts() {
     for (size_t k = 0; k < contacts_.size(); ++k) {
       const ContactItem<T>& c = contacts_[k];
-      const T* d = contact_dx_.data() + 6 * k;
-      for (int side = 0; side < (c.kind == ContactKind::Particle ? 2 : 1); ++side) {
+      const T* d = contact_dx_.data() + kContactDx * k;
+      const int sides = c.kind == ContactKind::Particle ? 2 : c.kind == ContactKind::Triangle ? 4 : 1;
+      for (int side = 0; side < sides; ++side) {
         const T* q = d + 3 * side;
         if (q[0] == T(0) && q[1] == T(0) && q[2] == T(0)) continue;
-        const size_t p = static_cast<size_t>(side == 0 ? c.a : c.b);
+        const size_t p = static_cast<size_t>(side == 0                            ? c.a
+                                             : c.kind == ContactKind::Particle ? c.b
+                                                                               : c.t[static_cast<size_t>(side - 1)]);
         jacobi_sum_[3 * p] = jacobi_sum_[3 * p] + q[0];
         jacobi_sum_[3 * p + 1] = jacobi_sum_[3 * p + 1] + q[1];
         jacobi_sum_[3 * p + 2] = jacobi_sum_[3 * p + 2] + q[2];

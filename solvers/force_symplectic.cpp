@@ -148,6 +148,10 @@ class ForceSymplecticSolver final : public Solver {
 
 std::unique_ptr<Solver> make_force_symplectic_solver(const SolverOptions& options,
                                                      const Model& model) {
+  if (model.surface_contact || model.self_contact)
+    throw std::invalid_argument(
+        "force-symplectic does not simulate vertex-triangle contact (scene.surface_contact or "
+        "scene.self_contact): pbd and xpbd do; ref-be refuses it too");
   for (size_t j = 0; j < model.constraints.size(); ++j) {
     const Constraint& c = model.constraints[j];
     if (!(c.compliance > 0.0)) {

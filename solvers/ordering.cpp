@@ -18,10 +18,12 @@ DynamicStencil dynamic_stencil(const Model& model, const Constraint& constraint)
 
 DynamicStencil dynamic_stencil(const Model& model, const Contact& contact) {
   DynamicStencil s{-1, -1, -1, -1};
+  std::array<int, 4> ps{};
+  const int count = contact_particles(model, contact, ps);
   int k = 0;
-  if (model.inv_mass[static_cast<size_t>(contact.a)] > 0.0) s[static_cast<size_t>(k++)] = contact.a;
-  if (contact.kind == ContactKind::Particle && model.inv_mass[static_cast<size_t>(contact.b)] > 0.0)
-    s[static_cast<size_t>(k++)] = contact.b;
+  for (int i = 0; i < count; ++i)
+    if (model.inv_mass[static_cast<size_t>(ps[static_cast<size_t>(i)])] > 0.0)
+      s[static_cast<size_t>(k++)] = ps[static_cast<size_t>(i)];
   return s;
 }
 

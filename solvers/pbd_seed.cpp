@@ -629,6 +629,8 @@ class PbdSeedSolver final : public Solver {
         record_normal_push(model, k, out, normal.template cast<double>());
         return true;
       }
+      case ContactKind::Triangle:  // refused by make_pbd_seed_solver: the listing has none
+        throw std::logic_error("pbd-seed: a vertex-triangle contact reached the listing");
     }
     return false;
   }
@@ -690,6 +692,10 @@ class PbdSeedSolver final : public Solver {
 }  // namespace
 
 std::unique_ptr<Solver> make_pbd_seed_solver(const SolverOptions& options, const Model& model) {
+  if (model.surface_contact || model.self_contact)
+    throw std::invalid_argument(
+        "pbd-seed does not simulate vertex-triangle contact (scene.surface_contact or "
+        "scene.self_contact; the listing has none): pbd and xpbd do");
   // A FEM element is a material (Pa); PBD's per-constraint stiffness k is not one.
   const bool fem_constraints = std::any_of(model.constraints.begin(), model.constraints.end(),
                                            [](const Constraint& c) { return is_fem_kind(c.kind); });

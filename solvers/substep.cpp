@@ -16,11 +16,11 @@ void find_substep_contacts(const Model& model, double t_end, double margin, cons
 ConstraintEval contact_stencil(const Model& model, size_t k, double t_end, SubstepScratch& work,
                                Stencil& st, Weights& w) {
   const Contact& c = work.contacts[k];
-  st.count = c.kind == ContactKind::Particle ? 2 : 1;
-  st.particles = {c.a, c.b, -1, -1};
+  std::array<int, 4> ps{};
+  st.count = contact_particles(model, c, ps);
+  st.particles = {ps[0], ps[1], ps[2], ps[3]};
   w = Weights{};
-  w[0] = model.inv_mass[static_cast<size_t>(c.a)];
-  if (st.count == 2) w[1] = model.inv_mass[static_cast<size_t>(c.b)];
+  for (int i = 0; i < st.count; ++i) w[static_cast<size_t>(i)] = model.inv_mass[static_cast<size_t>(ps[static_cast<size_t>(i)])];
   const ConstraintEval e = eval_contact(model, c, work.p, t_end);
   if (e.valid && e.C < 0.0) work.contact_active[k] = 1;
   return e;

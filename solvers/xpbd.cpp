@@ -227,8 +227,10 @@ class XpbdSolver final : public Solver {
       if (!(lambda_k > 0.0)) continue;
       const Contact& c = work_.contacts[k];
       const ConstraintEval e = eval_contact(model, c, p, t_end);
-      g.row(c.a) -= lambda_k * e.grad[0].transpose();
-      if (c.kind == ContactKind::Particle) g.row(c.b) -= lambda_k * e.grad[1].transpose();
+      std::array<int, 4> ps{};
+      const int count = contact_particles(model, c, ps);
+      for (int i = 0; i < count; ++i)
+        g.row(ps[static_cast<size_t>(i)]) -= lambda_k * e.grad[static_cast<size_t>(i)].transpose();
       h2 += e.C * e.C;
     }
     double g2 = 0.0;

@@ -176,6 +176,56 @@ TEST(Contacts, MeshContactsAreFoundAsTheirDistanceSays) {
   EXPECT_STREQ(to_string(ContactKind::Mesh), "mesh");
 }
 
+TEST(Contacts, VertexTriangleGradientMatchesFiniteDifferencesAndConservesMomentum) {
+  // Particle 0 against the triangle of particles 1, 2, 3 (random positions: face, edge and
+  // vertex regions all occur); the gradient over all four particles, and its momentum
+  // properties (an internal contact: the gradients sum to zero and exert no torque).
+  Random rng(31);
+  int failures = 0;
+  for (int n = 0; n < kConfigurations && failures < 5; ++n) {
+    Model m;
+    for (int i = 0; i < 4; ++i) add_particle(m, Vec3::Zero(), 1.0, 0.01 * (i + 1));
+    m.triangles.push_back({1, 2, 3});
+    m.surface_contact = true;
+    const Config4 x{rng.vec(-1, 1), rng.vec(-1, 1), rng.vec(-1, 1), rng.vec(-1, 1)};
+    const Contact c{ContactKind::Triangle, 0, 0};
+    const auto eval = [&](const Config4& y) { return eval_contact(m, c, to_points(y, 4), 0.0); };
+    const ConstraintEval e = eval(x);
+    ASSERT_TRUE(e.valid);
+    std::string problem = test::check_gradient(eval, x, 4);
+    const std::string momentum = test::check_momentum(e, x, 4);
+    problem += (problem.empty() || momentum.empty() ? "" : "; ") + momentum;
+    if (!problem.empty()) {
+      ADD_FAILURE() << "configuration " << n << ": " << problem;
+      ++failures;
+    }
+  }
+  // The closed form: a particle 0.3 above the triangle's interior, radii 0.01 and max 0.04.
+  Model m;
+  add_particle(m, Vec3(0.2, 0.2, 0.3), 1.0, 0.01);
+  add_particle(m, Vec3(0, 0, 0), 1.0, 0.02);
+  add_particle(m, Vec3(1, 0, 0), 1.0, 0.03);
+  add_particle(m, Vec3(0, 1, 0), 1.0, 0.04);
+  m.inv_mass[3] = 0.0;  // a pinned vertex: the contact is found all the same
+  m.triangles.push_back({1, 2, 3});
+  m.particle_body = {0, 1, 1, 1};  // two bodies: the particle and the triangle
+  m.surface_contact = true;
+  const ConstraintEval e = eval_contact(m, {ContactKind::Triangle, 0, 0}, m.rest_positions, 0.0);
+  EXPECT_NEAR(e.C, 0.3 - 0.05, 1e-15);
+  EXPECT_TRUE(test::near(e.grad[0], Vec3::UnitZ(), test::kRoundoff));
+  EXPECT_TRUE(test::near(e.grad[1], -0.6 * Vec3::UnitZ(), test::kRoundoff));
+  std::array<int, 4> ps{};
+  EXPECT_EQ(contact_particles(m, {ContactKind::Triangle, 0, 0}, ps), 4);
+  EXPECT_EQ(ps, (std::array<int, 4>{0, 1, 2, 3}));
+  // Found by the finder below a margin, never against its own triangle, sorted.
+  const std::vector<Contact> found = find_contacts(m, m.rest_positions, 0.0, 0.3);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].kind, ContactKind::Triangle);
+  EXPECT_TRUE(find_contacts(m, m.rest_positions, 0.0, 0.2).empty());
+  m.surface_contact = false;
+  EXPECT_TRUE(find_contacts(m, m.rest_positions, 0.0, 0.3).empty());
+}
+
 TEST(Contacts, ParticlePairGradientMatchesFiniteDifferencesAndConservesMomentum) {
   check_contact("particle pair", [](Model&, Random&) {}, {ContactKind::Particle, 0, 1}, 2, 0.0, 25);
   Model m = two_particles();

@@ -100,6 +100,13 @@ TEST(ModelChecks, ParticleProblems) {
   m.radius.pop_back();
   expect_one(check_model(m), "radius has");
   m = sound_model();
+  m.particle_body.assign(static_cast<size_t>(m.particle_count()) - 1, 0);
+  expect_one(check_model(m), "particle_body has");
+  m.particle_body.assign(static_cast<size_t>(m.particle_count()), 0);
+  EXPECT_TRUE(check_model(m).empty());
+  m.particle_body[3] = -1;
+  expect_one(check_model(m), "particle 3: body -1");
+  m = sound_model();
   m.gravity.x() = kNaN;
   expect_one(check_model(m), "gravity");
 }

@@ -260,8 +260,12 @@ TEST(RefBeContact, MovingSphereLiftsAParticleWithoutPenetration) {
 
 TEST(RefBeContact, StackOfBodiesLandsWithoutPenetration) {
   // soft_cube_stack: three tet blocks, two of them [[body]] entries, 4 mm apart; 10 steps: the
-  // upper cubes land on the lower ones, particle against particle, and nothing penetrates.
-  const Scene sc = config::build_scene(config::load("soft_cube_stack"));
+  // upper cubes land on the lower ones, particle against particle, and nothing penetrates. The
+  // catalog scene's vertex-triangle contact (which ref-be refuses) is switched off.
+  Scene sc = config::build_scene(config::load("soft_cube_stack"));
+  ASSERT_TRUE(sc.model.surface_contact);
+  EXPECT_THROW(make_solver(be_options(), sc.model), std::invalid_argument);
+  sc.model.surface_contact = false;
   auto solver = make_solver(be_options(), sc.model);
   State s = sc.initial;
   for (int k = 0; k < 10; ++k) {
@@ -288,6 +292,16 @@ TEST(RefBeContact, RefusesWhatItCannotRun) {
     ADD_FAILURE() << "a penetrating start was accepted";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("gap"), std::string::npos) << e.what();
+  }
+  // Vertex-triangle contact: refused, naming the key, not run with those contacts ignored.
+  {
+    const Scene sc = config::build_scene(config::load("cloth_over_block"));
+    try {
+      make_solver(be_options(), sc.model);
+      ADD_FAILURE() << "ref-be accepted vertex-triangle contact";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("scene.surface_contact"), std::string::npos) << e.what();
+    }
   }
   // ref-bdf still refuses contact, and says why and what to use.
   SolverOptions bdf;
