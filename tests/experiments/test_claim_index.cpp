@@ -1,4 +1,5 @@
 // experiments/claim_index: the index of a source's claims, and its coverage by experiments.
+#include <unistd.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -54,7 +55,7 @@ rule = "drop > 0"
 )toml";
 
 TEST(ClaimIndex, ReadsTheSourceAndTheClaimsAndChecksCoverage) {
-  const fs::path dir = fs::temp_directory_path() / "pbdbench_test_claim_index";
+  const fs::path dir = fs::temp_directory_path() / ("pbdbench_test_claim_index_" + std::to_string(::getpid()));  // one folder per test process: sessions sharing /tmp do not collide
   fs::remove_all(dir);
   fs::create_directories(dir / "experiments");
   std::ofstream(dir / "index.toml") << kIndex;

@@ -1,5 +1,6 @@
 // experiments/experiment: the catalog of experiments loads, and bad files are refused naming the file,
 // the line and the key.
+#include <unistd.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -20,7 +21,7 @@ const std::vector<std::string> kClaimIds = {
     "S3.3", "S3.4",  "S4.1",  "S4.2", "S4.3",  "S4.4",  "S4.5", "S5.1",  "S5.2",  "S5.3",  "S5.4"};
 
 fs::path write(const std::string& id, const std::string& text) {
-  const fs::path dir = fs::temp_directory_path() / "pbdbench_test_experiment";
+  const fs::path dir = fs::temp_directory_path() / ("pbdbench_test_experiment_" + std::to_string(::getpid()));  // one folder per test process: sessions sharing /tmp do not collide
   fs::create_directories(dir);
   const fs::path p = dir / (id + ".toml");
   std::ofstream(p) << text;

@@ -1,4 +1,5 @@
 // The run loop: a run file per run, explosion detection and stop, interruption, determinism.
+#include <unistd.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -26,7 +27,7 @@ using namespace pbdbench;
 namespace {
 
 fs::path temp_file(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / "pbdbench_test_runner";
+  const fs::path dir = fs::temp_directory_path() / ("pbdbench_test_runner_" + std::to_string(::getpid()));  // one folder per test process: sessions sharing /tmp do not collide
   fs::create_directories(dir);
   return dir / name;
 }

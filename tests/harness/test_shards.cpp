@@ -1,5 +1,6 @@
 // harness/shards: the deal of units to shards, Slurm array lists, and what a run file says
 // against its planned configuration.
+#include <unistd.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -38,7 +39,7 @@ TEST(Shards, ArrayLists) {
 }
 
 TEST(Shards, RunStateAgainstThePlannedConfiguration) {
-  const fs::path dir = fs::temp_directory_path() / "pbdbench_test_shards";
+  const fs::path dir = fs::temp_directory_path() / ("pbdbench_test_shards_" + std::to_string(::getpid()));  // one folder per test process: sessions sharing /tmp do not collide
   fs::remove_all(dir);
   fs::create_directories(dir);
   const config::Config cfg = config::load("free_fall", {{"time.duration", "0.05"}});

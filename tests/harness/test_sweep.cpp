@@ -1,4 +1,5 @@
 // Sweep files: expansion into runs, and refusal of bad sweep files with file and line.
+#include <unistd.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -12,7 +13,7 @@ using namespace pbdbench;
 namespace {
 
 fs::path write(const std::string& name, const std::string& text) {
-  const fs::path dir = fs::temp_directory_path() / "pbdbench_test_sweep";
+  const fs::path dir = fs::temp_directory_path() / ("pbdbench_test_sweep_" + std::to_string(::getpid()));  // one folder per test process: sessions sharing /tmp do not collide
   fs::create_directories(dir);
   const fs::path p = dir / name;
   std::ofstream(p) << text;
