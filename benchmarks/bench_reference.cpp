@@ -92,13 +92,28 @@ void BM_ReferenceStep(benchmark::State& bench, int n, int m, const char* solver)
   bench.counters["linear_seconds"] = linear * k;
 }
 
+// Newton iterations and linear-solve seconds per timed step, as benchmark counters.
+struct NewtonCounters {
+  double linear = 0.0, newton = 0.0;
+  long steps = 0;
+  void add(const StepReport& r) {
+    linear += r.time_linear;
+    newton += static_cast<double>(r.newton_iterations);
+    ++steps;
+  }
+  void write(benchmark::State& bench) const {
+    const double k = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
+    bench.counters["newton_iterations"] = newton * k;
+    bench.counters["linear_seconds"] = linear * k;
+  }
+};
+
 // global-cholmod: one step of a catalog scenario from its initial state.
 void BM_GlobalStep(benchmark::State& bench, const char* scenario) {
   config::Config cfg = config::load(scenario, {{"solver.name", "\"global-cholmod\""}});
   const Scene scene = config::build_scene(cfg);
   const double dt = config::run_options(cfg).dt;
-  double linear = 0.0, newton = 0.0;
-  long steps = 0;
+  NewtonCounters counters;
   for (auto _ : bench) {
     bench.PauseTiming();
     auto s = make_solver(config::solver_options(cfg), scene.model);
@@ -106,13 +121,9 @@ void BM_GlobalStep(benchmark::State& bench, const char* scenario) {
     bench.ResumeTiming();
     const StepReport r = s->step(scene.model, state, dt);
     benchmark::DoNotOptimize(state.x.data());
-    linear += r.time_linear;
-    newton += static_cast<double>(r.newton_iterations);
-    ++steps;
+    counters.add(r);
   }
-  const double k = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
-  bench.counters["newton_iterations"] = newton * k;
-  bench.counters["linear_seconds"] = linear * k;
+  counters.write(bench);
 }
 
 // global-cholmod in the steady state: the solver built once and the scene run for `warmup`
@@ -125,18 +136,13 @@ void BM_GlobalSteadyStep(benchmark::State& bench, const char* scenario, int warm
   auto s = make_solver(config::solver_options(cfg), scene.model);
   State state = scene.initial;
   for (int k = 0; k < warmup; ++k) s->step(scene.model, state, dt);
-  double linear = 0.0, newton = 0.0;
-  long steps = 0;
+  NewtonCounters counters;
   for (auto _ : bench) {
     const StepReport r = s->step(scene.model, state, dt);
     benchmark::DoNotOptimize(state.x.data());
-    linear += r.time_linear;
-    newton += static_cast<double>(r.newton_iterations);
-    ++steps;
+    counters.add(r);
   }
-  const double k = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
-  bench.counters["newton_iterations"] = newton * k;
-  bench.counters["linear_seconds"] = linear * k;
+  counters.write(bench);
 }
 
 // Random symmetric K x K blocks shaped as global-cholmod's: g g^T / eps - l H, H symmetric.
