@@ -189,6 +189,23 @@ void BM_Psd(benchmark::State& bench) {
                                                       benchmark::Counter::kIsRate);
 }
 
+// The projection of core/psd_projection: Eigen's solver (project_psd) against the fixed-size
+// tridiagonal QL (project_psd_tridiagonal_ql), on the same indefinite blocks.
+template <int K, bool Ql>
+void BM_PsdProject(benchmark::State& bench) {
+  const auto blocks = psd_blocks<K>();
+  double sink = 0.0;
+  for (auto _ : bench)
+    for (auto H : blocks) {
+      if constexpr (Ql) psd::project_psd_tridiagonal_ql<K>(H);
+      else psd::project_psd<K>(H);
+      sink += H(0, 0);
+    }
+  benchmark::DoNotOptimize(sink);
+  bench.counters["blocks_per_s"] = benchmark::Counter(static_cast<double>(blocks.size()) * bench.iterations(),
+                                                      benchmark::Counter::kIsRate);
+}
+
 // Translation-free 12 x 12 blocks (bending, FEM elements: zero on the translations), indefinite:
 // the general 12 x 12 eigen-solve against the 9 x 9 restriction (core/psd_projection.hpp).
 std::vector<Eigen::Matrix<double, 12, 12>> translation_free_blocks() {
@@ -283,6 +300,10 @@ int main(int argc, char** argv) {
   benchmark::RegisterBenchmark("psd/12/translation_free/restricted9", BM_PsdTranslationFree<true>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/volume/eigen12", BM_PsdVolume<false>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/volume/analytic", BM_PsdVolume<true>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/9/eigen", BM_PsdProject<9, false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/9/tridiagonal_ql", BM_PsdProject<9, true>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/12/eigen", BM_PsdProject<12, false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/12/tridiagonal_ql", BM_PsdProject<12, true>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/6/fixed", BM_Psd<6, false>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/6/dynamic", BM_Psd<6, true>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/12/fixed", BM_Psd<12, false>)->Unit(benchmark::kMicrosecond);

@@ -4,8 +4,9 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
-#include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pbdbench::psd {
 
@@ -30,7 +31,229 @@ Mat3 translation_free_coordinates(const Vec3& x0, const Vec3& x1, const Vec3& x2
 
 Eigen::Map<const Vec9> vec(const Mat3& m) { return Eigen::Map<const Vec9>(m.data()); }
 
+// Householder reduction of the symmetric N x N matrix held in V (row-major, V[i][j] = A(i, j)) to
+// tridiagonal form, accumulating the orthogonal transform in V: on return A = V T V^T with T's
+// diagonal in d and its off-diagonal in e[1..N-1] (e[0] = 0). The textbook algorithm (Wilkinson
+// and Reinsch's tred2), every loop bound a compile-time bound.
+template <int N>
+void householder_tridiagonal(double (&V)[N][N], double (&d)[N], double (&e)[N]) {
+  for (int j = 0; j < N; ++j) d[j] = V[N - 1][j];
+  for (int i = N - 1; i > 0; --i) {
+    double scale = 0.0, h = 0.0;
+    for (int k = 0; k < i; ++k) scale += std::abs(d[k]);
+    if (scale == 0.0) {
+      e[i] = d[i - 1];
+      for (int j = 0; j < i; ++j) {
+        d[j] = V[i - 1][j];
+        V[i][j] = 0.0;
+        V[j][i] = 0.0;
+      }
+    } else {
+      for (int k = 0; k < i; ++k) {
+        d[k] /= scale;
+        h += d[k] * d[k];
+      }
+      double f = d[i - 1];
+      double g = std::sqrt(h);
+      if (f > 0.0) g = -g;
+      e[i] = scale * g;
+      h -= f * g;
+      d[i - 1] = f - g;
+      for (int j = 0; j < i; ++j) e[j] = 0.0;
+      for (int j = 0; j < i; ++j) {
+        f = d[j];
+        V[j][i] = f;
+        g = e[j] + V[j][j] * f;
+        for (int k = j + 1; k <= i - 1; ++k) {
+          g += V[k][j] * d[k];
+          e[k] += V[k][j] * f;
+        }
+        e[j] = g;
+      }
+      f = 0.0;
+      for (int j = 0; j < i; ++j) {
+        e[j] /= h;
+        f += e[j] * d[j];
+      }
+      const double hh = f / (h + h);
+      for (int j = 0; j < i; ++j) e[j] -= hh * d[j];
+      for (int j = 0; j < i; ++j) {
+        f = d[j];
+        g = e[j];
+        for (int k = j; k <= i - 1; ++k) V[k][j] -= (f * e[k] + g * d[k]);
+        d[j] = V[i - 1][j];
+        V[i][j] = 0.0;
+      }
+    }
+    d[i] = h;
+  }
+  for (int i = 0; i < N - 1; ++i) {  // accumulate the transformations
+    V[N - 1][i] = V[i][i];
+    V[i][i] = 1.0;
+    const double h = d[i + 1];
+    if (h != 0.0) {
+      for (int k = 0; k <= i; ++k) d[k] = V[k][i + 1] / h;
+      for (int j = 0; j <= i; ++j) {
+        double g = 0.0;
+        for (int k = 0; k <= i; ++k) g += V[k][i + 1] * V[k][j];
+        for (int k = 0; k <= i; ++k) V[k][j] -= g * d[k];
+      }
+    }
+    for (int k = 0; k <= i; ++k) V[k][i + 1] = 0.0;
+  }
+  for (int j = 0; j < N; ++j) {
+    d[j] = V[N - 1][j];
+    V[N - 1][j] = 0.0;
+  }
+  V[N - 1][N - 1] = 1.0;
+  e[0] = 0.0;
+}
+
+// The implicit QL iteration with Wilkinson's shift on the tridiagonal (d, e) of
+// householder_tridiagonal (Bowdler, Martin, Reinsch and Wilkinson's tql2), the rotations applied
+// to W = V^T (row j of W: the j-th eigenvector, contiguous, so that a rotation of two rows
+// vectorises). On return d holds the eigenvalues (unsorted). Returns false when an eigenvalue took
+// more than 60 iterations (the caller falls back to Eigen's solver).
+template <int N>
+bool implicit_ql(double (&W)[N][N], double (&d)[N], double (&e)[N]) {
+  for (int i = 1; i < N; ++i) e[i - 1] = e[i];
+  e[N - 1] = 0.0;
+  double f = 0.0, tst1 = 0.0;
+  constexpr double eps = std::numeric_limits<double>::epsilon();
+  for (int l = 0; l < N; ++l) {
+    tst1 = std::max(tst1, std::abs(d[l]) + std::abs(e[l]));
+    int m = l;
+    while (m < N - 1 && !(std::abs(e[m]) <= eps * tst1)) ++m;
+    if (m > l) {
+      int iterations = 0;
+      do {
+        if (++iterations > 60) return false;
+        double g = d[l];
+        double p = (d[l + 1] - g) / (2.0 * e[l]);
+        double r = std::sqrt(p * p + 1.0);
+        if (p < 0.0) r = -r;
+        d[l] = e[l] / (p + r);
+        d[l + 1] = e[l] * (p + r);
+        const double dl1 = d[l + 1];
+        double h = g - d[l];
+        for (int i = l + 2; i < N; ++i) d[i] -= h;
+        f += h;
+        p = d[m];
+        double c = 1.0, c2 = 1.0, c3 = 1.0, s = 0.0, s2 = 0.0;
+        const double el1 = e[l + 1];
+        for (int i = m - 1; i >= l; --i) {
+          c3 = c2;
+          c2 = c;
+          s2 = s;
+          g = c * e[i];
+          h = c * p;
+          r = std::sqrt(p * p + e[i] * e[i]);
+          e[i + 1] = s * r;
+          s = e[i] / r;
+          c = p / r;
+          p = c * d[i] - s * g;
+          d[i + 1] = h + s * (c * g + s * d[i]);
+          for (int k = 0; k < N; ++k) {
+            const double w1 = W[i + 1][k], w0 = W[i][k];
+            W[i + 1][k] = s * w0 + c * w1;
+            W[i][k] = c * w0 - s * w1;
+          }
+        }
+        p = -s * s2 * c3 * el1 * e[l] / dl1;
+        e[l] = s * p;
+        d[l] = c * p;
+      } while (std::abs(e[l]) > eps * tst1);
+    }
+    d[l] += f;
+    e[l] = 0.0;
+  }
+  return true;
+}
+
+// The eigensystem of the symmetric N x N matrix H: H = sum_j d_j w_j w_j^T, w_j = row j of W
+// (orthonormal), d unsorted. Should the QL iteration not converge, Eigen's solver gives it.
+template <int N, class Matrix>
+void symmetric_eigensystem(const Matrix& H, double (&d)[N], double (&W)[N][N]) {
+  double V[N][N], e[N];
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) V[i][j] = H(i, j);
+  householder_tridiagonal<N>(V, d, e);
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) W[i][j] = V[j][i];
+  if (implicit_ql<N>(W, d, e)) return;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(H);
+  for (int j = 0; j < N; ++j) {
+    d[j] = eig.eigenvalues()(j);
+    for (int k = 0; k < N; ++k) W[j][k] = eig.eigenvectors()(k, j);
+  }
+}
+
+// Z = U diag(s) V^T with U and V rotations, s_0 >= s_1 >= |s_2| and s_2 < 0 when det Z < 0 (the
+// convention of volume_term_hessian_psd). V from the eigensystem of Z^T Z, then U and s from the
+// Gram-Schmidt factorisation of B = Z V = U R (R diagonal in exact arithmetic; its off-diagonal,
+// of the order of rounding times |Z|, is dropped): the singular values come from B's columns, not
+// from the squares, so a small one keeps its accuracy relative to |Z|.
+void rotation_svd(const Mat3& Z, Mat3& U, Vec3& s, Mat3& V) {
+  const Mat3 A = Z.transpose() * Z;
+  double d[3], W[3][3];
+  symmetric_eigensystem<3>(A, d, W);
+  int order[3] = {0, 1, 2};  // eigenvalues in decreasing order
+  if (d[order[0]] < d[order[1]]) std::swap(order[0], order[1]);
+  if (d[order[1]] < d[order[2]]) std::swap(order[1], order[2]);
+  if (d[order[0]] < d[order[1]]) std::swap(order[0], order[1]);
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) V(r, c) = W[order[c]][r];
+  if (V.determinant() < 0.0) V.col(2) = -V.col(2);
+  const Mat3 B = Z * V;
+  const double scale = Z.cwiseAbs().maxCoeff();
+  // The first column: B's largest; a zero matrix takes any rotation (U = V).
+  s(0) = B.col(0).norm();
+  if (!(s(0) > 0.0)) {
+    U = V;
+    s.setZero();
+    return;
+  }
+  const Vec3 u0 = B.col(0) / s(0);
+  Vec3 b1 = B.col(1) - u0.dot(B.col(1)) * u0;
+  s(1) = b1.norm();
+  Vec3 u1;
+  if (s(1) > 1e-300 * scale && s(1) > 0.0) {
+    u1 = b1 / s(1);
+  } else {  // rank one: any unit vector orthogonal to u0
+    const int k = std::abs(u0(0)) < 0.6 ? 0 : (std::abs(u0(1)) < 0.6 ? 1 : 2);
+    u1 = u0.cross(Vec3::Unit(k)).normalized();
+    s(1) = 0.0;
+  }
+  const Vec3 u2 = u0.cross(u1);
+  s(2) = u2.dot(B.col(2));
+  U.col(0) = u0;
+  U.col(1) = u1;
+  U.col(2) = u2;
+}
+
 }  // namespace
+
+template <int N>
+void project_psd_tridiagonal_ql(Eigen::Matrix<double, N, N>& H) {
+  double d[N], W[N][N];
+  symmetric_eigensystem<N>(H, d, W);
+  // [H]_+ = sum over the positive eigenvalues of d_j w_j w_j^T, its upper triangle mirrored (the
+  // result symmetric bit for bit).
+  double P[N][N] = {};
+  for (int j = 0; j < N; ++j) {
+    if (!(d[j] > 0.0)) continue;
+    for (int r = 0; r < N; ++r) {
+      const double a = d[j] * W[j][r];
+      for (int c = r; c < N; ++c) P[r][c] += a * W[j][c];
+    }
+  }
+  for (int r = 0; r < N; ++r)
+    for (int c = r; c < N; ++c) H(r, c) = H(c, r) = P[r][c];
+}
+template void project_psd_tridiagonal_ql<3>(Eigen::Matrix<double, 3, 3>&);
+template void project_psd_tridiagonal_ql<6>(Eigen::Matrix<double, 6, 6>&);
+template void project_psd_tridiagonal_ql<9>(Eigen::Matrix<double, 9, 9>&);
+template void project_psd_tridiagonal_ql<12>(Eigen::Matrix<double, 12, 12>&);
 
 template <int N>
 void project_psd(Eigen::Matrix<double, N, N>& H) {
@@ -80,7 +303,7 @@ bool project_psd_translation_free(Mat12& H) {
   M = 0.5 * (M + M.transpose());
   const Eigen::LLT<Mat9> llt(M);
   const bool definite = llt.info() == Eigen::Success;
-  if (!definite) project_psd<9>(M);
+  if (!definite) project_psd_tridiagonal_ql<9>(M);
   H = expand_translation_free(M);
   return definite;
 }
@@ -93,17 +316,9 @@ Mat12 volume_term_hessian_psd(const Vec3& x0, const Vec3& x1, const Vec3& x2, co
   const Mat3 Z = translation_free_coordinates(x0, x1, x2, x3);
 
   // Z = U diag(s) V^T with U and V rotations: a reflection moves to the smallest singular value.
-  const Eigen::JacobiSVD<Mat3> svd(Z, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Mat3 U = svd.matrixU(), V = svd.matrixV();
-  Vec3 s = svd.singularValues();
-  if (U.determinant() < 0.0) {
-    U.col(2) = -U.col(2);
-    s(2) = -s(2);
-  }
-  if (V.determinant() < 0.0) {
-    V.col(2) = -V.col(2);
-    s(2) = -s(2);
-  }
+  Mat3 U, V;
+  Vec3 s;
+  rotation_svd(Z, U, s, V);
 
   const double inv_alpha = 1.0 / alpha;
   const double ck = C * kappa * inv_alpha;
@@ -127,12 +342,10 @@ Mat12 volume_term_hessian_psd(const Vec3& x0, const Vec3& x1, const Vec3& x2, co
   S(2, 0) += ck * s(1);
   S(1, 2) += ck * s(0);
   S(2, 1) += ck * s(0);
-  const Eigen::SelfAdjointEigenSolver<Mat3> eig(S);
-  for (int m = 0; m < 3; ++m) {
-    if (!(eig.eigenvalues()(m) > 0.0)) continue;
-    const Vec3 d = eig.eigenvectors().col(m);
-    add_mode(eig.eigenvalues()(m), U * d.asDiagonal() * V.transpose());
-  }
+  double lambda[3], W[3][3];
+  symmetric_eigensystem<3>(S, lambda, W);
+  for (int m = 0; m < 3; ++m)
+    if (lambda[m] > 0.0) add_mode(lambda[m], U * Vec3(W[m][0], W[m][1], W[m][2]).asDiagonal() * V.transpose());
   return expand_translation_free(K);
 }
 

@@ -49,13 +49,25 @@ extern template void project_psd<6>(Eigen::Matrix<double, 6, 6>&);
 extern template void project_psd<9>(Eigen::Matrix<double, 9, 9>&);
 extern template void project_psd<12>(Eigen::Matrix<double, 12, 12>&);
 
+// The same projection by a fixed-size Householder tridiagonalisation and implicit QL iteration
+// with Wilkinson's shift (the eigenvectors' rotations applied to contiguous rows), every loop
+// bound a compile-time constant: the general projection to rounding, 1.2x Eigen's solver at 9 x 9
+// and 1.6x at 12 x 12 (psd/9/*, psd/12/* of bench_reference; docs/performance.md). Uses Eigen's
+// solver when an eigenvalue does not converge in 60 iterations (never seen).
+template <int N>
+void project_psd_tridiagonal_ql(Eigen::Matrix<double, N, N>& H);
+extern template void project_psd_tridiagonal_ql<3>(Eigen::Matrix<double, 3, 3>&);
+extern template void project_psd_tridiagonal_ql<6>(Eigen::Matrix<double, 6, 6>&);
+extern template void project_psd_tridiagonal_ql<9>(Eigen::Matrix<double, 9, 9>&);
+extern template void project_psd_tridiagonal_ql<12>(Eigen::Matrix<double, 12, 12>&);
+
 // M = Q^T H Q and H = Q M Q^T (Q of the header).
 Mat9 restrict_translation_free(const Mat12& H);
 Mat12 expand_translation_free(const Mat9& M);
 
 // [H]_+ of a symmetric translation-free block (H (1 (x) I3) = 0 up to rounding; what H holds on
-// the translations is dropped), through the 9 x 9 restriction. Returns true when M was positive
-// definite and no eigen-solve ran.
+// the translations is dropped), through the 9 x 9 restriction (project_psd_tridiagonal_ql<9>).
+// Returns true when M was positive definite and no eigen-solve ran.
 bool project_psd_translation_free(Mat12& H);
 
 // [(g g^T + C hess V) / alpha]_+ over (x0, x1, x2, x3), g = grad V, for the volume term

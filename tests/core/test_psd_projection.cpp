@@ -8,7 +8,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <string>
 
 #include "core/constraint_functions.hpp"
@@ -58,6 +60,59 @@ TEST(PsdProjection, ClampsTheNegativeEigenvaluesAndKeepsTheRest) {
     psd::project_psd<12>(again);
     EXPECT_LE(max_abs(again - P), 1e-13) << "trial " << trial;
   }
+}
+
+// The tridiagonal-QL projection against Eigen's on blocks of every size the solvers project:
+// random (scaled from 1e-9 to 1e12), positive definite, rank-deficient, with repeated eigenvalues
+// (negative, zero and positive clusters), diagonal, already tridiagonal, zero.
+template <int N>
+void expect_tridiagonal_ql_equals_the_general_projection(Random& rng) {
+  using MatN = Eigen::Matrix<double, N, N>;
+  const auto check = [&](const MatN& H, const std::string& what) {
+    MatN general = H, fast = H;
+    psd::project_psd<N>(general);
+    psd::project_psd_tridiagonal_ql<N>(fast);
+    const double scale = std::max(H.cwiseAbs().maxCoeff(), 1e-300);
+    EXPECT_LE((fast - general).cwiseAbs().maxCoeff(), 2e-14 * scale) << N << " x " << N << ", " << what;
+    EXPECT_EQ(fast, fast.transpose()) << N << " x " << N << ", " << what;
+  };
+  for (int trial = 0; trial < 100; ++trial) {
+    const double scale = std::pow(10.0, rng.uniform(-9.0, 12.0));
+    const MatN A = random_symmetric<N>(rng);
+    check(scale * A, "random " + std::to_string(trial));
+    check(scale * (A * A.transpose() + 0.01 * MatN::Identity()), "definite " + std::to_string(trial));
+    // Rank 2: two outer products of either sign.
+    Eigen::Matrix<double, N, 1> u, v;
+    for (int i = 0; i < N; ++i) {
+      u(i) = rng.uniform(-1.0, 1.0);
+      v(i) = rng.uniform(-1.0, 1.0);
+    }
+    check(scale * (u * u.transpose() - v * v.transpose()), "rank 2 " + std::to_string(trial));
+    // Repeated eigenvalues: Q diag(lambda) Q^T with lambda in {-1, 0, 2} (Q orthogonal).
+    const Eigen::SelfAdjointEigenSolver<MatN> eig(A);
+    Eigen::Matrix<double, N, 1> lambda;
+    for (int i = 0; i < N; ++i) lambda(i) = static_cast<double>(rng.integer(0, 2)) * 1.5 - 1.0;
+    const MatN R = eig.eigenvectors() * lambda.asDiagonal() * eig.eigenvectors().transpose();
+    check(scale * MatN(0.5 * (R + R.transpose())), "clusters " + std::to_string(trial));
+    MatN D = MatN::Zero(), T = MatN::Zero();
+    for (int i = 0; i < N; ++i) {
+      D(i, i) = A(i, 0);
+      T(i, i) = A(i, i);
+      if (i + 1 < N) T(i, i + 1) = T(i + 1, i) = A(i, i + 1);
+    }
+    check(D, "diagonal " + std::to_string(trial));
+    check(T, "tridiagonal " + std::to_string(trial));
+  }
+  check(MatN::Zero(), "zero");
+  check(-MatN::Identity(), "minus identity");
+}
+
+TEST(PsdProjection, TridiagonalQlEqualsTheGeneralProjection) {
+  Random rng(17);
+  expect_tridiagonal_ql_equals_the_general_projection<3>(rng);
+  expect_tridiagonal_ql_equals_the_general_projection<6>(rng);
+  expect_tridiagonal_ql_equals_the_general_projection<9>(rng);
+  expect_tridiagonal_ql_equals_the_general_projection<12>(rng);
 }
 
 TEST(PsdProjection, TranslationFreeBasisIsOrthonormalAndBlindToTranslations) {
