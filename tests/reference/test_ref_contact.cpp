@@ -436,6 +436,72 @@ TEST(RefBeContact, SurfacesStackWithoutPenetration) {
   EXPECT_LT(min_surface_gap(sc.model, sb, s.x), be_options().ref_barrier_distance);
 }
 
+TEST(RefBeContact, FoldedClothKeepsItsLayersApartWithSelfContact) {
+  // An 8 x 16 cloth (0.2 x 0.4 m, radius 5 mm: layers touch at 1 cm) folded in two between rows 7
+  // and 8 (rows j >= 8 turned over onto rows j < 8 and lifted 2 cm); the lower half a trampoline
+  // pinned at its border. With scene.self_contact every self gap stays > 0 at every step and the
+  // upper half stays above the lower; without it (the control) the upper half falls through.
+  constexpr int nx = 8, ny = 16, half = ny / 2;
+  for (bool self : {true, false}) {
+    Model m;
+    ClothSpec c;
+    c.nx = nx;
+    c.ny = ny;
+    c.width = 0.2;
+    c.height = 0.4;
+    c.origin = Vec3(-0.1, 0.5, -0.2);
+    c.mass = 0.05;
+    c.radius = 0.005;
+    c.stretch.compliance = 1e-6;
+    c.shear_params.compliance = 1e-5;
+    c.bending = false;
+    add_cloth(m, c);
+    for (int j = 0; j < half; ++j)
+      for (int i = 0; i < nx; ++i)
+        if (j == 0 || i == 0 || i == nx - 1) m.inv_mass[static_cast<size_t>(j * nx + i)] = 0.0;
+    m.self_contact = self;
+    // A ground far below, so that both runs take ref-be's contact path (the same integrator).
+    m.planes.push_back(PlaneCollider{Vec3::UnitY(), 10.0});
+    State s = rest_state(m);
+    for (int j = half; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        s.x(j * nx + i, 2) = -s.x(j * nx + i, 2);
+        s.x(j * nx + i, 1) += 0.02;
+      }
+    const barrier::SurfaceBarrier sb(m);
+    SCOPED_TRACE(self ? "self-contact on" : "self-contact off (control)");
+    EXPECT_EQ(sb.enabled(), self);
+    SolverOptions o = be_options();
+    o.ref_max_newton = 500;  // the control's crumpling cloth needs more than the default 50
+    auto solver = make_solver(o, m);
+    double lowest = 1e300;
+    for (int k = 0; k < 40; ++k) {
+      try {
+        solver->step(m, s, 1.0 / 60.0);
+      } catch (const std::exception& e) {
+        FAIL() << (self ? "self-contact on" : "control") << ", step " << k << ": " << e.what();
+      }
+      if (!self) continue;
+      const double g = min_surface_gap(m, sb, s.x);
+      ASSERT_GT(g, 0.0) << "step " << k;
+      lowest = std::min(lowest, g);
+    }
+    // The upper half's rows 10 to 15 lie over the lower half's rows 5 to 0.
+    double upper = 0.0, lower = 0.0;
+    for (int j = 10; j < ny; ++j)
+      for (int i = 1; i < nx - 1; ++i) {
+        upper += s.x(j * nx + i, 1);
+        lower += s.x((ny - 1 - j) * nx + i, 1);
+      }
+    if (self) {
+      EXPECT_GT(upper, lower);
+      EXPECT_LT(lowest, be_options().ref_barrier_distance);  // the layers did meet
+    } else {
+      EXPECT_LT(upper, lower);  // the control: it passes through
+    }
+  }
+}
+
 TEST(RefBeContact, Deterministic) {
   const Scene sc = config::build_scene(config::load("balls_in_bowl"));
   State a = sc.initial, b = sc.initial;
