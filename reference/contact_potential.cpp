@@ -6,6 +6,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "core/surface_contact.hpp"
+
 namespace pbdbench::barrier {
 
 namespace {
@@ -122,7 +124,7 @@ Gap gap(const Model& model, const Contact& c, const Points& x, double t) {
       out.hess.bottomRightCorner<3, 3>() = H;
       break;
     }
-    case ContactKind::Triangle:  // refused by make_ref_be_contact
+    case ContactKind::Triangle:  // ref-be takes these as SurfaceBarrier pairs, never here
       throw std::logic_error("ref-be: a vertex-triangle contact reached the barrier");
   }
   return out;
@@ -366,6 +368,300 @@ double step_bound(const Model& model, const Points& x0, const Points& x1, double
     alpha = std::min(alpha, radial_crossing(p, q, R + keep * d0, true));
   }
   return alpha;
+}
+
+}  // namespace pbdbench::barrier
+
+// ---- Surfaces ----------------------------------------------------------------------------------
+
+namespace pbdbench::barrier {
+
+namespace {
+
+using proximity::PairKind;
+using X4 = std::array<Vec3, 4>;
+
+X4 gather4(const std::array<int, 4>& v, const Points& x) {
+  return {x.row(v[0]).transpose(), x.row(v[1]).transpose(), x.row(v[2]).transpose(),
+          x.row(v[3]).transpose()};
+}
+
+double pair_distance(const SurfacePair& pair, const X4& y) {
+  return pair.kind == PairKind::PointTriangle
+             ? proximity::point_triangle_distance(y[0], y[1], y[2], y[3])
+             : proximity::edge_edge_distance(y[0], y[1], y[2], y[3]);
+}
+
+}  // namespace
+
+Vec3 tangential_displacement(const SurfaceFriction& f, const Points& x, const Points& x0) {
+  Vec3 dx = Vec3::Zero();
+  for (size_t i = 0; i < 4; ++i)
+    dx += f.c[i] * (x.row(f.v[i]) - x0.row(f.v[i])).transpose();
+  return dx - f.f.normal * f.f.normal.dot(dx);
+}
+
+SurfaceBarrier::SurfaceBarrier(const Model& model) : model_(&model) {
+  enabled_ = (model.surface_contact || model.self_contact) && !model.triangles.empty();
+  if (!enabled_) return;
+  const int n = model.particle_count();
+  for (const auto& t : model.triangles)
+    for (int k = 0; k < 3; ++k) {
+      vertices_.push_back(t[static_cast<size_t>(k)]);
+      int a = t[static_cast<size_t>(k)], b = t[static_cast<size_t>((k + 1) % 3)];
+      if (a > b) std::swap(a, b);
+      edges_.push_back({a, b});
+    }
+  std::sort(vertices_.begin(), vertices_.end());
+  vertices_.erase(std::unique(vertices_.begin(), vertices_.end()), vertices_.end());
+  std::sort(edges_.begin(), edges_.end());
+  edges_.erase(std::unique(edges_.begin(), edges_.end()), edges_.end());
+  for (const auto& e : edges_) edge_as_triangle_.push_back({e[0], e[1], e[1]});
+  for (int v : vertices_) max_radius_ = std::max(max_radius_, model.radius[static_cast<size_t>(v)]);
+  body_.resize(static_cast<size_t>(n));
+  int bodies = 1;
+  for (int p = 0; p < n; ++p) {
+    body_[static_cast<size_t>(p)] = particle_body(model, p);
+    bodies = std::max(bodies, body_[static_cast<size_t>(p)] + 1);
+  }
+  body_has_tets_.assign(static_cast<size_t>(bodies), 0);
+  for (const auto& tet : model.tets) body_has_tets_[static_cast<size_t>(body_[static_cast<size_t>(tet[0])])] = 1;
+  if (model.self_contact) {
+    neighbours_.assign(static_cast<size_t>(n), {});
+    for (const auto& t : model.triangles)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          if (i != j) neighbours_[static_cast<size_t>(t[static_cast<size_t>(i)])].push_back(t[static_cast<size_t>(j)]);
+    for (auto& list : neighbours_) {
+      std::sort(list.begin(), list.end());
+      list.erase(std::unique(list.begin(), list.end()), list.end());
+    }
+  }
+}
+
+bool SurfaceBarrier::point_triangle_allowed(int p, int t) const {
+  const Model& m = *model_;
+  const auto& tri = m.triangles[static_cast<size_t>(t)];
+  if (tri[0] == p || tri[1] == p || tri[2] == p) return false;
+  bool dynamic = m.inv_mass[static_cast<size_t>(p)] > 0.0;
+  for (int v : tri) dynamic = dynamic || m.inv_mass[static_cast<size_t>(v)] > 0.0;
+  if (!dynamic) return false;
+  const int body = body_[static_cast<size_t>(p)];
+  if (body != body_[static_cast<size_t>(tri[0])]) return m.surface_contact;
+  if (!m.self_contact || body_has_tets_[static_cast<size_t>(body)]) return false;
+  const auto& near = neighbours_[static_cast<size_t>(p)];
+  for (int v : tri)
+    if (std::binary_search(near.begin(), near.end(), v)) return false;
+  return true;
+}
+
+bool SurfaceBarrier::edge_edge_allowed(int e, int f) const {
+  const Model& m = *model_;
+  const auto& a = edges_[static_cast<size_t>(e)];
+  const auto& b = edges_[static_cast<size_t>(f)];
+  for (int u : a)
+    for (int w : b)
+      if (u == w) return false;
+  bool dynamic = false;
+  for (int v : {a[0], a[1], b[0], b[1]}) dynamic = dynamic || m.inv_mass[static_cast<size_t>(v)] > 0.0;
+  if (!dynamic) return false;
+  const int body = body_[static_cast<size_t>(a[0])];
+  if (body != body_[static_cast<size_t>(b[0])]) return m.surface_contact;
+  if (!m.self_contact || body_has_tets_[static_cast<size_t>(body)]) return false;
+  for (int u : a) {
+    const auto& near = neighbours_[static_cast<size_t>(u)];
+    for (int w : b)
+      if (std::binary_search(near.begin(), near.end(), w)) return false;
+  }
+  return true;
+}
+
+SurfacePair SurfaceBarrier::make_point_triangle(int p, int t) const {
+  const Model& m = *model_;
+  const auto& tri = m.triangles[static_cast<size_t>(t)];
+  SurfacePair pair;
+  pair.kind = PairKind::PointTriangle;
+  pair.v = {p, tri[0], tri[1], tri[2]};
+  pair.first = p;
+  pair.second = t;
+  double r = 0.0;
+  for (int v : tri) r = std::max(r, m.radius[static_cast<size_t>(v)]);
+  pair.thickness = m.radius[static_cast<size_t>(p)] + r;
+  return pair;
+}
+
+SurfacePair SurfaceBarrier::make_edge_edge(int e, int f) const {
+  const Model& m = *model_;
+  const auto& a = edges_[static_cast<size_t>(e)];
+  const auto& b = edges_[static_cast<size_t>(f)];
+  SurfacePair pair;
+  pair.kind = PairKind::EdgeEdge;
+  pair.v = {a[0], a[1], b[0], b[1]};
+  pair.first = e;
+  pair.second = f;
+  const auto r = [&](int v) { return m.radius[static_cast<size_t>(v)]; };
+  pair.thickness = std::max(r(a[0]), r(a[1])) + std::max(r(b[0]), r(b[1]));
+  const Points& rest = m.rest_positions;
+  pair.eps_x = proximity::mollifier_threshold(rest.row(a[0]).transpose(), rest.row(a[1]).transpose(),
+                                              rest.row(b[0]).transpose(), rest.row(b[1]).transpose());
+  return pair;
+}
+
+template <class Visit>
+void SurfaceBarrier::candidates(const Points& x0, const Points* x1, double grow, Visit visit) const {
+  if (!enabled_) return;
+  const Model& m = *model_;
+  double M = 0.0;  // the largest displacement of a surface vertex over the paths
+  if (x1)
+    for (int v : vertices_) M = std::max(M, (x1->row(v) - x0.row(v)).norm());
+  std::vector<int> found;
+  const auto grown = [&](TriangleBvh::Box box, double pad) {
+    box.lo.array() -= pad;
+    box.hi.array() += pad;
+    return box;
+  };
+  {
+    const TriangleBvh bvh(x0, m.triangles);
+    for (int p : vertices_) {
+      TriangleBvh::Box box;
+      box.grow(Vec3(x0.row(p).transpose()));
+      if (x1) box.grow(Vec3(x1->row(p).transpose()));
+      found.clear();
+      bvh.overlapping(grown(box, grow + M + m.radius[static_cast<size_t>(p)] + max_radius_),
+                      [&](int t) { found.push_back(t); });
+      std::sort(found.begin(), found.end());
+      for (int t : found)
+        if (point_triangle_allowed(p, t)) visit(make_point_triangle(p, t));
+    }
+  }
+  const TriangleBvh bvh(x0, edge_as_triangle_);
+  for (int e = 0; e < static_cast<int>(edges_.size()); ++e) {
+    TriangleBvh::Box box;
+    for (int v : edges_[static_cast<size_t>(e)]) {
+      box.grow(Vec3(x0.row(v).transpose()));
+      if (x1) box.grow(Vec3(x1->row(v).transpose()));
+    }
+    found.clear();
+    bvh.overlapping(grown(box, grow + M + 2.0 * max_radius_), [&](int f) {
+      if (f > e) found.push_back(f);
+    });
+    std::sort(found.begin(), found.end());
+    for (int f : found)
+      if (edge_edge_allowed(e, f)) visit(make_edge_edge(e, f));
+  }
+}
+
+std::vector<SurfacePair> SurfaceBarrier::near(const Points& x, double margin) const {
+  std::vector<SurfacePair> out;
+  candidates(x, nullptr, std::max(margin, 0.0), [&](const SurfacePair& pair) {
+    if (gap(pair, x) < margin) out.push_back(pair);
+  });
+  return out;
+}
+
+std::vector<SurfacePair> SurfaceBarrier::swept(const Points& x0, const Points& x1,
+                                               double margin) const {
+  std::vector<SurfacePair> out;
+  candidates(x0, &x1, std::max(margin, 0.0), [&](const SurfacePair& pair) { out.push_back(pair); });
+  return out;
+}
+
+double SurfaceBarrier::gap(const SurfacePair& pair, const Points& x) {
+  return pair_distance(pair, gather4(pair.v, x)) - pair.thickness;
+}
+
+SurfaceTerm SurfaceBarrier::term(const SurfacePair& pair, const Points& x, double d_hat) {
+  SurfaceTerm out;
+  const X4 y = gather4(pair.v, x);
+  const bool pt = pair.kind == PairKind::PointTriangle;
+  const proximity::Distance dist = pt ? proximity::point_triangle(y[0], y[1], y[2], y[3])
+                                      : proximity::edge_edge(y[0], y[1], y[2], y[3]);
+  out.gap = dist.d - pair.thickness;
+  if (out.gap >= d_hat) return out;
+  if (!(out.gap > 0.0)) {
+    out.value = kInf;
+    return out;
+  }
+  const double b = value(out.gap, d_hat), b1 = first(out.gap, d_hat), b2 = second(out.gap, d_hat);
+  const proximity::Mat12 hb = b2 * dist.grad * dist.grad.transpose() + b1 * dist.hess;
+  if (pt) {
+    out.value = b;
+    out.b_first = b1;
+    out.grad = b1 * dist.grad;
+    out.hess = hb;
+    return out;
+  }
+  const proximity::Mollifier mo = proximity::edge_edge_mollifier(y[0], y[1], y[2], y[3], pair.eps_x);
+  out.value = mo.value * b;
+  out.b_first = mo.value * b1;
+  out.grad = mo.value * b1 * dist.grad + b * mo.grad;
+  const proximity::Mat12 cross = b1 * mo.grad * dist.grad.transpose();
+  out.hess = mo.value * hb + cross + cross.transpose() + b * mo.hess;
+  return out;
+}
+
+double SurfaceBarrier::energy(const SurfacePair& pair, const Points& x, double d_hat) {
+  const X4 y = gather4(pair.v, x);
+  const double g = pair_distance(pair, y) - pair.thickness;
+  if (g >= d_hat) return 0.0;
+  if (!(g > 0.0)) return kInf;
+  double m = 1.0;
+  if (pair.kind == PairKind::EdgeEdge) {
+    const double c = (y[1] - y[0]).cross(y[3] - y[2]).squaredNorm();
+    if (c < pair.eps_x) m = -c * c / (pair.eps_x * pair.eps_x) + 2.0 * c / pair.eps_x;
+  }
+  return m * value(g, d_hat);
+}
+
+double SurfaceBarrier::step_bound(const Points& x0, const Points& x1, double d_hat, double keep,
+                                  double limit, long* iterations) const {
+  double alpha = limit;
+  if (!enabled_) return alpha;
+  for (const SurfacePair& pair : swept(x0, x1, d_hat)) {
+    const X4 y0 = gather4(pair.v, x0), y1 = gather4(pair.v, x1);
+    X4 dy;
+    for (size_t i = 0; i < 4; ++i) dy[i] = y1[i] - y0[i];
+    const double g0 = pair_distance(pair, y0) - pair.thickness;
+    if (!(g0 > 0.0))
+      throw std::logic_error("the surface step bound met a pair that starts with a gap <= 0");
+    const proximity::CcdResult r =
+        proximity::conservative_ccd(pair.kind, y0, dy, pair.thickness, keep, alpha);
+    alpha = r.alpha;
+    if (iterations) *iterations += r.iterations;
+  }
+  return alpha;
+}
+
+std::vector<SurfaceFriction> SurfaceBarrier::lag_friction(const Points& x0, double kappa,
+                                                          double d_hat) const {
+  std::vector<SurfaceFriction> out;
+  if (!enabled_ || !(model_->surface_friction > 0.0)) return out;
+  for (const SurfacePair& pair : near(x0, d_hat)) {
+    const SurfaceTerm t = term(pair, x0, d_hat);
+    const double lambda = -kappa * t.b_first;
+    if (!(t.gap > 0.0) || !(lambda > 0.0)) continue;
+    const X4 y = gather4(pair.v, x0);
+    SurfaceFriction f;
+    f.v = pair.v;
+    Vec3 n;
+    if (pair.kind == PairKind::PointTriangle) {
+      Vec3 bary;
+      const Vec3 q = closest_point_on_triangle(y[0], y[1], y[2], y[3], &bary);
+      n = y[0] - q;
+      f.c = {1.0, -bary[0], -bary[1], -bary[2]};
+    } else {
+      double s = 0.0, u = 0.0;
+      proximity::edge_edge_closest(y[0], y[1], y[2], y[3], s, u);
+      n = (y[0] + s * (y[1] - y[0])) - (y[2] + u * (y[3] - y[2]));
+      f.c = {1.0 - s, s, -(1.0 - u), -u};
+    }
+    if (!(n.norm() > 0.0)) continue;
+    f.f.normal = n.normalized();
+    f.f.lambda = lambda;
+    f.f.mu = model_->surface_friction;
+    out.push_back(f);
+  }
+  return out;
 }
 
 }  // namespace pbdbench::barrier

@@ -24,14 +24,28 @@
 //
 // so -grad D_k is the Coulomb force mu lambda opposite to the sliding, smoothed to zero below a
 // sliding speed |u| / h of eps_v (Li et al. 2020, eqs. 11 to 14).
+//
+// Surfaces (SurfaceBarrier below; issue 17): with scene.surface_contact (between bodies) or
+// scene.self_contact (within a body without tets), IPC's point-triangle and edge-edge pairs over
+// Model::triangles and their edges (core/proximity.hpp for the distances and the collision
+// check): the gap of a pair is its unsigned distance less its thickness (point-triangle: r_p +
+// max r of the triangle, as core/surface_contact.hpp; edge-edge: max r of one edge + max r of
+// the other), its barrier b(gap), an edge-edge pair's multiplied by the mollifier m (Li et al.
+// 2020, eq. 23). The pairs considered follow core/surface_contact.hpp's rules: the points are
+// the triangles' vertices; different bodies with scene.surface_contact; one body without tets
+// with scene.self_contact, skipping a pair where a vertex of one primitive is a vertex of the
+// other or shares a triangle with one; at least one of the four vertices dynamic.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "core/bvh.hpp"
 #include "core/contacts.hpp"
 #include "core/model.hpp"
+#include "core/proximity.hpp"
 
 namespace pbdbench::barrier {
 
@@ -100,5 +114,86 @@ Mat3 friction_hessian(const FrictionContact& f, const Vec3& u, double e);
 // candidates; particle pairs only where `candidates` lists them (the caller's broad phase).
 double step_bound(const Model& model, const Points& x0, const Points& x1, double t0, double t1,
                   const std::vector<Contact>& pair_candidates, double slack);
+
+// ---- Surfaces: point-triangle and edge-edge pairs ------------------------------------------
+
+struct SurfacePair {
+  proximity::PairKind kind = proximity::PairKind::PointTriangle;
+  std::array<int, 4> v{};  // point-triangle: p, t0, t1, t2; edge-edge: a0, a1, b0, b1
+  int first = -1, second = -1;  // point-triangle: vertex, triangle; edge-edge: edges (first < second)
+  double thickness = 0.0;  // m
+  double eps_x = 0.0;      // edge-edge: the mollifier's threshold (at rest)
+};
+
+// A pair's barrier term m b(gap) (m = 1 for point-triangle), with its gradient and Hessian over
+// the 12 coordinates of its four vertices; gap = distance - thickness.
+struct SurfaceTerm {
+  double gap = 0.0;
+  double value = 0.0;
+  double b_first = 0.0;  // m b'(gap): minus the normal force per kappa (friction's lambda)
+  proximity::Vec12 grad = proximity::Vec12::Zero();
+  proximity::Mat12 hess = proximity::Mat12::Zero();
+};
+
+// A lagged friction pair: u = P sum_i c_i (x_i - x0_i), P = I - n n^T; c = (1, -u, -v, -w) with
+// the closest point's barycentric coordinates (point-triangle), (1 - s, s, -(1 - t), -t) with the
+// closest points' parameters (edge-edge); normal and lambda = -kappa m b'(gap) at the start.
+struct SurfaceFriction {
+  std::array<int, 4> v{};
+  std::array<double, 4> c{};
+  FrictionContact f;  // its normal, lambda and mu (its contact unused)
+};
+
+Vec3 tangential_displacement(const SurfaceFriction& f, const Points& x, const Points& x0);
+
+class SurfaceBarrier {
+ public:
+  explicit SurfaceBarrier(const Model& model);
+  bool enabled() const { return enabled_; }
+
+  // The pairs with gap < margin at x (exact distances; a BVH of core/bvh.hpp over the triangles
+  // and one over the edges as the broad phase), sorted: point-triangle by (vertex, triangle),
+  // then edge-edge by (edge, edge).
+  std::vector<SurfacePair> near(const Points& x, double margin) const;
+
+  // Every pair that can come within margin of contact (gap < margin) somewhere on the straight
+  // paths x0 -> x1: those whose primitives' boxes over the paths, grown by the pair's thickness
+  // and margin, overlap (a superset).
+  std::vector<SurfacePair> swept(const Points& x0, const Points& x1, double margin) const;
+
+  static double gap(const SurfacePair& pair, const Points& x);
+  static SurfaceTerm term(const SurfacePair& pair, const Points& x, double d_hat);
+  // term's value alone (cheaper): m b(gap), +inf for gap <= 0.
+  static double energy(const SurfacePair& pair, const Points& x, double d_hat);
+
+  // The largest alpha in [0, limit] such that along x0 + s (x1 - x0), s in [0, alpha], every
+  // pair's gap stays >= keep of its value at s = 0 (guaranteed; proximity::conservative_ccd per
+  // pair of swept(x0, x1, d_hat); the pairs not swept stay farther than d_hat). Every such pair
+  // must start with a gap > 0 (std::logic_error otherwise). `iterations` (when given) gets the
+  // advances summed over the pairs.
+  double step_bound(const Points& x0, const Points& x1, double d_hat, double keep, double limit,
+                    long* iterations = nullptr) const;
+
+  // The lagged friction pairs at x0 (gap < d_hat) for mu = Model::surface_friction > 0.
+  std::vector<SurfaceFriction> lag_friction(const Points& x0, double kappa, double d_hat) const;
+
+ private:
+  bool point_triangle_allowed(int p, int t) const;
+  bool edge_edge_allowed(int e, int f) const;
+  SurfacePair make_point_triangle(int p, int t) const;
+  SurfacePair make_edge_edge(int e, int f) const;
+  template <class Visit>
+  void candidates(const Points& x0, const Points* x1, double grow, Visit visit) const;
+
+  const Model* model_ = nullptr;
+  bool enabled_ = false;
+  double max_radius_ = 0.0;
+  std::vector<int> vertices_;                     // the triangles' vertices, sorted
+  std::vector<std::array<int, 2>> edges_;         // the triangles' edges, sorted, v0 < v1
+  std::vector<std::array<int, 3>> edge_as_triangle_;  // (v0, v1, v1): the edges' boxes
+  std::vector<int> body_;
+  std::vector<char> body_has_tets_;
+  std::vector<std::vector<int>> neighbours_;      // self-contact: through the triangles, sorted
+};
 
 }  // namespace pbdbench::barrier

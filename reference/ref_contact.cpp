@@ -36,6 +36,9 @@ using Clock = std::chrono::steady_clock;
 
 // The fraction of each gap a Newton step may close (the collision check keeps the rest).
 constexpr double kStepSlack = 0.9;
+// Surface pairs: the fraction of each gap the conservative check guarantees to keep (it stops
+// the step where the gap has fallen to twice that, core/proximity.hpp).
+constexpr double kSurfaceKeep = 0.05;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
@@ -56,7 +59,7 @@ class RefBeContact final : public Solver {
   RefBeContact(const SolverOptions& options, const Model& model)
       : substeps_(options.substeps), tolerance_(options.ref_atol),
         max_newton_(options.ref_max_newton), d_hat_(options.ref_barrier_distance),
-        eps_v_(options.ref_friction_velocity), scene_(model) {
+        eps_v_(options.ref_friction_velocity), scene_(model), surface_(model) {
     const EnergyModel& energy = scene_.system().energy();
     if (energy.has_damping())
       throw std::invalid_argument(
@@ -93,14 +96,26 @@ class RefBeContact final : public Solver {
  private:
   const EnergyModel& energy() const { return scene_.system().energy(); }
 
-  // The contact set at x (gaps below d_hat) at time t.
+  // The contact set at x (gaps below d_hat) at time t: colliders and particle pairs (the
+  // vertex-triangle contacts of find_contacts are left to the surface pairs).
   std::vector<Contact> active(const Model& model, const Points& x, double t) const {
-    return find_contacts(model, x, t, d_hat_);
+    std::vector<Contact> out = find_contacts(model, x, t, d_hat_);
+    if (surface_.enabled())
+      out.erase(std::remove_if(out.begin(), out.end(),
+                               [](const Contact& c) { return c.kind == ContactKind::Triangle; }),
+                out.end());
+    return out;
+  }
+
+  // The surface pairs (point-triangle, edge-edge) with gaps below d_hat at x.
+  std::vector<barrier::SurfacePair> active_surface(const Points& x) const {
+    return surface_.near(x, d_hat_);
   }
 
   // The incremental potential at q (positions x at t1, contacts `contacts`).
   double potential(const Model& model, const Eigen::VectorXd& q, const Points& x, double t1,
-                   const std::vector<Contact>& contacts, double* barrier_part = nullptr,
+                   const std::vector<Contact>& contacts,
+                   const std::vector<barrier::SurfacePair>& spairs, double* barrier_part = nullptr,
                    double* magnitude = nullptr) const {
     const Eigen::VectorXd& m = energy().mass();
     double e = 0.5 * (q - q_hat_).cwiseAbs2().dot(m);
@@ -109,9 +124,13 @@ class RefBeContact final : public Solver {
     for (const Contact& c : contacts)
       for (const barrier::Gap& g : barrier::barrier_terms(model, c, x, t1, d_hat_))
         B += kappa_ * barrier::value(g.d, d_hat_);
+    for (const barrier::SurfacePair& sp : spairs)
+      B += kappa_ * barrier::SurfaceBarrier::energy(sp, x, d_hat_);
     double D = 0.0;
     for (const barrier::FrictionContact& f : friction_)
       D += barrier::friction_value(f, barrier::tangential_displacement(f, x, x0_), eps_v_ * h_);
+    for (const barrier::SurfaceFriction& f : surface_friction_)
+      D += barrier::friction_value(f.f, barrier::tangential_displacement(f, x, x0_), eps_v_ * h_);
     if (barrier_part) *barrier_part = B;
     if (magnitude) *magnitude = e + h_ * h_ * (std::abs(U) + B + D);
     return e + h_ * h_ * (U + B + D);
@@ -132,8 +151,9 @@ class RefBeContact final : public Solver {
 
   // Gradient and PSD-projected Hessian of E at q (x its positions at t1).
   void derivatives(const Model& model, const Eigen::VectorXd& q, const Points& x, double t1,
-                   const std::vector<Contact>& contacts, bool project, Eigen::VectorXd& grad,
-                   Eigen::SparseMatrix<double>* H) {
+                   const std::vector<Contact>& contacts,
+                   const std::vector<barrier::SurfacePair>& spairs, bool project,
+                   Eigen::VectorXd& grad, Eigen::SparseMatrix<double>* H) {
     const Eigen::VectorXd& m = energy().mass();
     const double h2 = h_ * h_;
     energy().gradient(x, gU_);
@@ -170,7 +190,29 @@ class RefBeContact final : public Solver {
         add_block(trip_, c.b, c.b, Hc.bottomRightCorner<3, 3>());
       }
     }
+    for (const barrier::SurfacePair& sp : spairs) {
+      const barrier::SurfaceTerm st = barrier::SurfaceBarrier::term(sp, x, d_hat_);
+      if (st.value == 0.0 && st.grad.isZero(0.0)) continue;
+      for (int i = 0; i < 4; ++i) add_gradient(grad, sp.v[static_cast<size_t>(i)], h2 * kappa_ * st.grad.segment<3>(3 * i));
+      if (!H) continue;
+      proximity::Mat12 Hs = h2 * kappa_ * st.hess;
+      if (project) Hs = project_psd<12>(Hs);
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+          add_block(trip_, sp.v[static_cast<size_t>(i)], sp.v[static_cast<size_t>(j)], Hs.block<3, 3>(3 * i, 3 * j));
+    }
     const double e = eps_v_ * h_;
+    for (const barrier::SurfaceFriction& f : surface_friction_) {
+      const Vec3 u = barrier::tangential_displacement(f, x, x0_);
+      const Vec3 gf = h2 * barrier::friction_gradient(f.f, u, e);
+      for (int i = 0; i < 4; ++i) add_gradient(grad, f.v[static_cast<size_t>(i)], f.c[static_cast<size_t>(i)] * gf);
+      if (!H) continue;
+      const Mat3 Hf = h2 * barrier::friction_hessian(f.f, u, e);
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+          add_block(trip_, f.v[static_cast<size_t>(i)], f.v[static_cast<size_t>(j)],
+                    f.c[static_cast<size_t>(i)] * f.c[static_cast<size_t>(j)] * Hf);
+    }
     for (const barrier::FrictionContact& f : friction_) {
       const Vec3 u = barrier::tangential_displacement(f, x, x0_);
       const Vec3 gf = h2 * barrier::friction_gradient(f, u, e);
@@ -213,17 +255,30 @@ class RefBeContact final : public Solver {
       }
       friction_.push_back(f);
     }
+    surface_friction_ = surface_.lag_friction(x0_, kappa_, d_hat_);
   }
 
   // Throws when some gap at x (time t) is <= 0, naming the first.
   void require_separated(const Model& model, const Points& x, double t, const char* when) const {
-    for (const Contact& c : find_contacts(model, x, t, d_hat_)) {
+    for (const Contact& c : active(model, x, t)) {
       const double d = barrier::gap(model, c, x, t).d;
       if (d <= 0.0) {
         std::ostringstream os;
         os << "ref-be with contact: " << when << ", particle " << c.a << " is in contact ("
            << to_string(c.kind) << " " << c.b << ") with gap " << d
            << " m <= 0; the barrier needs every gap > 0";
+        throw std::runtime_error(os.str());
+      }
+    }
+    for (const barrier::SurfacePair& sp : surface_.near(x, d_hat_)) {
+      const double d = barrier::SurfaceBarrier::gap(sp, x);
+      if (d <= 0.0) {
+        std::ostringstream os;
+        os << "ref-be with contact: " << when << ", "
+           << (sp.kind == proximity::PairKind::PointTriangle ? "particle " : "edge ")
+           << sp.first << " is in contact ("
+           << (sp.kind == proximity::PairKind::PointTriangle ? "triangle " : "edge ")
+           << sp.second << ") with gap " << d << " m <= 0; the barrier needs every gap > 0";
         throw std::runtime_error(os.str());
       }
     }
@@ -288,8 +343,9 @@ class RefBeContact final : public Solver {
     require_separated(model, x_, t1,
                       "when kinematic particles and moving colliders reach the end of the step");
     std::vector<Contact> contacts = active(model, x_, t1);
+    std::vector<barrier::SurfacePair> spairs = active_surface(x_);
     double E_size = 0.0;
-    double E = potential(model, q, x_, t1, contacts, nullptr, &E_size);
+    double E = potential(model, q, x_, t1, contacts, spairs, nullptr, &E_size);
     Eigen::VectorXd grad, p;
     Eigen::SparseMatrix<double> H;
     double step_norm = std::numeric_limits<double>::infinity();
@@ -300,12 +356,12 @@ class RefBeContact final : public Solver {
       // The exact Hessian first (Newton's quadratic convergence needs the contacts' negative
       // curvature, -|b'| (I - n n^T) / r of a pressed pair); where M + h^2 K is then not
       // positive definite, each term projected onto the PSD cone (a descent direction always).
-      derivatives(model, q, x_, t1, contacts, false, grad, &H);
+      derivatives(model, q, x_, t1, contacts, spairs, false, grad, &H);
       llt_.compute(H);
       ++report.linear_setups;
       ++report.cholesky_factorizations;
       if (llt_.info() != Eigen::Success) {
-        derivatives(model, q, x_, t1, contacts, true, grad, &H);
+        derivatives(model, q, x_, t1, contacts, spairs, true, grad, &H);
         llt_.compute(H);
         ++report.linear_setups;
         ++report.cholesky_factorizations;
@@ -335,6 +391,8 @@ class RefBeContact final : public Solver {
           if (c.kind == ContactKind::Particle) candidates.push_back(c);
       }
       double alpha = barrier::step_bound(model, x_, x1_, t1, t1, candidates, kStepSlack);
+      if (surface_.enabled())
+        alpha = surface_.step_bound(x_, x1_, d_hat_, kSurfaceKeep, alpha, &ccd_iterations_);
       report.time_contacts += seconds_since(tcc);
       // Backtracking (Armijo) on E from the bound. Where the decrease the step predicts,
       // -alpha grad . p, is below the round-off of E (1e-13 of the size of its terms), E cannot
@@ -346,15 +404,16 @@ class RefBeContact final : public Solver {
         Eigen::VectorXd qa = q + alpha * p;
         energy().positions(qa, t1, xa_);
         std::vector<Contact> ca = active(model, xa_, t1);
+        std::vector<barrier::SurfacePair> sa = active_surface(xa_);
         double Ea_size = 0.0;
-        const double Ea = potential(model, qa, xa_, t1, ca, nullptr, &Ea_size);
+        const double Ea = potential(model, qa, xa_, t1, ca, sa, nullptr, &Ea_size);
         const bool below_roundoff = -alpha * slope <= 1e-13 * std::max(E_size, Ea_size);
         bool accept = std::isfinite(Ea) && (Ea <= E + 1e-4 * alpha * slope || (cuts == 0 && below_roundoff));
         if (accept && !below_roundoff) {
           // The upper side of the strong Wolfe condition: not far past the minimum along p, where
           // E rises steeply. Without it a step lands deep in a barrier (E is still lower there
           // than at the start), and Newton climbs out of a gap of 1e-9 m only slowly.
-          derivatives(model, qa, xa_, t1, ca, false, ga_, nullptr);
+          derivatives(model, qa, xa_, t1, ca, sa, false, ga_, nullptr);
           accept = ga_.dot(p) <= -0.9 * slope;
         }
         if (accept) {
@@ -362,6 +421,7 @@ class RefBeContact final : public Solver {
           q = qa;
           x_ = xa_;
           contacts = std::move(ca);
+          spairs = std::move(sa);
           E = Ea;
           break;
         }
@@ -391,9 +451,9 @@ class RefBeContact final : public Solver {
     q_ = q;
     u_ = (q - q_start) / h;
     double B = 0.0;
-    potential(model, q, x_, t1, contacts, &B);
+    potential(model, q, x_, t1, contacts, spairs, &B);
     report.barrier_energy = B;
-    report.contacts += static_cast<int>(contacts.size());
+    report.contacts += static_cast<int>(contacts.size() + spairs.size());
     report.ref_steps += 1;
     report.residual_position = std::max(report.residual_position, step_norm);
   }
@@ -408,6 +468,9 @@ class RefBeContact final : public Solver {
   double h_ = 0.0;
   Points x0_, x_, x1_, xa_;
   std::vector<barrier::FrictionContact> friction_;
+  barrier::SurfaceBarrier surface_;
+  std::vector<barrier::SurfaceFriction> surface_friction_;
+  long ccd_iterations_ = 0;
   std::vector<double> hvalues_;
   std::vector<Eigen::Triplet<double>> trip_;
   Eigen::SimplicialLLT<Eigen::SparseMatrix<double>> llt_;
@@ -419,13 +482,6 @@ std::unique_ptr<Solver> make_ref_be_contact(const SolverOptions& options, const 
   SolverOptions checked = options;
   checked.ref_ignore_colliders = true;  // contact is simulated here; the other checks stay
   check_reference_model("ref-be", model, checked);
-  if (model.surface_contact || model.self_contact)
-    throw std::invalid_argument(
-        std::string("ref-be does not simulate vertex-triangle contact, and the scene has it on (") +
-        (model.surface_contact ? "scene.surface_contact" : "scene.self_contact") +
-        " = true): its barrier and collision check cover planes, spheres, mesh colliders and "
-        "particle pairs, not a particle against a body's surface triangles (issue 17); run pbd "
-        "or xpbd, or set solver.ref.ignore_colliders = true to run ref-be without any contact");
   return std::make_unique<RefBeContact>(options, model);
 }
 

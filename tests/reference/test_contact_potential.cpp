@@ -5,8 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 
@@ -261,6 +264,146 @@ TEST(Barrier, StepBoundKeepsTheMeshGapAndIsTight) {
     EXPECT_GT(bounded, 20) << moving;  // the trials exercise the bound
   }
 }
+
+
+// ---- Surfaces: point-triangle and edge-edge pairs (SurfaceBarrier) ------------------------------
+
+namespace surface_tests {
+
+// Two bodies of two triangles each (a unit square split along a diagonal), body 1 above body 0
+// at height h, turned by `angle` about the vertical and shifted by (sx, sz).
+Model two_squares(double h, double angle, double sx, double sz, double radius) {
+  Model m;
+  const double c = std::cos(angle), s = std::sin(angle);
+  for (int body = 0; body < 2; ++body)
+    for (int k = 0; k < 4; ++k) {
+      const double u = (k == 1 || k == 2) ? 0.5 : -0.5, w = k >= 2 ? 0.5 : -0.5;
+      Vec3 p = body == 0 ? Vec3(u, 0.0, w) : Vec3(c * u - s * w + sx, h, s * u + c * w + sz);
+      add_particle(m, p, 1.0, radius);
+    }
+  m.triangles = {{0, 1, 2}, {0, 2, 3}, {4, 5, 6}, {4, 6, 7}};
+  m.particle_body = {0, 0, 0, 0, 1, 1, 1, 1};
+  m.surface_contact = true;
+  return m;
+}
+
+// Every allowed pair by brute force with its gap, for comparison with near().
+std::vector<std::pair<int, double>> brute_force_gaps(const Model& m, const Points& x) {
+  std::vector<std::pair<int, double>> out;  // (kind, gap)
+  for (int p = 0; p < m.particle_count(); ++p)
+    for (int t = 0; t < 4; ++t) {
+      const auto& tri = m.triangles[static_cast<size_t>(t)];
+      if (m.particle_body[static_cast<size_t>(p)] == m.particle_body[static_cast<size_t>(tri[0])]) continue;
+      double r = 0.0;
+      for (int v : tri) r = std::max(r, m.radius[static_cast<size_t>(v)]);
+      out.push_back({0, proximity::point_triangle_distance(x.row(p).transpose(), x.row(tri[0]).transpose(),
+                                                           x.row(tri[1]).transpose(), x.row(tri[2]).transpose()) -
+                            (m.radius[static_cast<size_t>(p)] + r)});
+    }
+  const int edges[5][2] = {{0, 1}, {1, 2}, {0, 2}, {2, 3}, {0, 3}};
+  for (const auto& e : edges)
+    for (const auto& f : edges)
+      out.push_back({1, proximity::edge_edge_distance(x.row(e[0]).transpose(), x.row(e[1]).transpose(),
+                                                      x.row(f[0] + 4).transpose(), x.row(f[1] + 4).transpose()) -
+                            2.0 * m.radius[0]});
+  return out;
+}
+
+TEST(SurfaceBarrier, NearFindsExactlyThePairsBelowTheMargin) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-1, 1);
+  for (int trial = 0; trial < 40; ++trial) {
+    const Model m = two_squares(0.05 + 0.2 * (U(rng) + 1), U(rng), 0.6 * U(rng), 0.6 * U(rng), 0.01);
+    const barrier::SurfaceBarrier sb(m);
+    ASSERT_TRUE(sb.enabled());
+    Points x = m.rest_positions;
+    for (Eigen::Index i = 0; i < x.rows(); ++i) x.row(i) += 0.03 * Vec3(U(rng), U(rng), U(rng)).transpose();
+    for (double margin : {0.02, 0.1, 0.3}) {
+      int expected[2] = {0, 0};
+      for (const auto& [kind, g] : brute_force_gaps(m, x))
+        if (g < margin) ++expected[kind];
+      int found[2] = {0, 0};
+      for (const barrier::SurfacePair& p : sb.near(x, margin)) {
+        ++found[p.kind == proximity::PairKind::EdgeEdge];
+        EXPECT_LT(barrier::SurfaceBarrier::gap(p, x), margin);
+      }
+      EXPECT_EQ(found[0], expected[0]) << trial;
+      EXPECT_EQ(found[1], expected[1]) << trial;
+    }
+  }
+}
+
+TEST(SurfaceBarrier, TermDerivativesMatchCentralDifferences) {
+  const double d_hat = 0.05;
+  int checked[2] = {0, 0}, mollified = 0;
+  // Crossed squares (edges at an angle) and nearly parallel ones (the mollifier active).
+  const double setups[2][3] = {{0.7, 0.13, 0.21}, {0.004, 0.02, 0.01}};
+  for (const auto& setup : setups) {
+    const Model m = two_squares(0.04, setup[0], setup[1], setup[2], 0.005);
+    const barrier::SurfaceBarrier sb(m);
+    Points x = m.rest_positions;
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<double> U(-1, 1);
+    for (Eigen::Index i = 0; i < x.rows(); ++i) x.row(i) += 0.002 * Vec3(U(rng), U(rng), U(rng)).transpose();
+    for (const barrier::SurfacePair& p : sb.near(x, d_hat)) {
+      const barrier::SurfaceTerm t = barrier::SurfaceBarrier::term(p, x, d_hat);
+      ASSERT_GT(t.gap, 0.0);
+      EXPECT_NEAR(t.value, barrier::SurfaceBarrier::energy(p, x, d_hat), 1e-11 * std::abs(t.value));
+      const double h = 1e-7;
+      proximity::Vec12 g_fd;
+      proximity::Mat12 H_fd;
+      for (int k = 0; k < 12; ++k) {
+        Points xp = x, xm = x;
+        xp(p.v[static_cast<size_t>(k / 3)], k % 3) += h;
+        xm(p.v[static_cast<size_t>(k / 3)], k % 3) -= h;
+        g_fd[k] = (barrier::SurfaceBarrier::energy(p, xp, d_hat) - barrier::SurfaceBarrier::energy(p, xm, d_hat)) / (2 * h);
+        H_fd.col(k) = (barrier::SurfaceBarrier::term(p, xp, d_hat).grad - barrier::SurfaceBarrier::term(p, xm, d_hat).grad) / (2 * h);
+      }
+      const double gs = t.grad.cwiseAbs().maxCoeff(), Hs = t.hess.cwiseAbs().maxCoeff();
+      EXPECT_LT((t.grad - g_fd).cwiseAbs().maxCoeff(), 1e-6 * gs + 1e-12);
+      EXPECT_LT((t.hess - H_fd).cwiseAbs().maxCoeff(), 1e-5 * Hs + 1e-9);
+      ++checked[p.kind == proximity::PairKind::EdgeEdge];
+      if (p.kind == proximity::PairKind::EdgeEdge &&
+          proximity::edge_edge_mollifier(x.row(p.v[0]).transpose(), x.row(p.v[1]).transpose(),
+                                         x.row(p.v[2]).transpose(), x.row(p.v[3]).transpose(), p.eps_x)
+                  .value < 1.0)
+        ++mollified;
+    }
+  }
+  EXPECT_GT(checked[0], 4);
+  EXPECT_GT(checked[1], 4);
+  EXPECT_GT(mollified, 0);
+}
+
+TEST(SurfaceBarrier, StepBoundKeepsEveryGapOnRandomPaths) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> U(-1, 1);
+  const double d_hat = 0.1, keep = 0.05;
+  int cut = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    const Model m = two_squares(0.05, U(rng), 0.3 * U(rng), 0.3 * U(rng), 0.005);
+    const barrier::SurfaceBarrier sb(m);
+    const Points x0 = m.rest_positions;
+    Points x1 = x0;
+    for (Eigen::Index i = 0; i < x1.rows(); ++i) x1.row(i) += 0.1 * Vec3(U(rng), U(rng), U(rng)).transpose();
+    const double alpha = sb.step_bound(x0, x1, d_hat, keep, 1.0);
+    if (alpha < 1.0) ++cut;
+    const auto g0 = brute_force_gaps(m, x0);
+    for (int i = 0; i <= 2000; ++i) {
+      const Points x = x0 + (alpha * i / 2000.0) * (x1 - x0);
+      const auto g = brute_force_gaps(m, x);
+      for (size_t k = 0; k < g.size(); ++k)
+        if (g0[k].second < d_hat) {
+          ASSERT_GE(g[k].second, keep * g0[k].second * (1 - 1e-9)) << trial;
+        } else {
+          ASSERT_GT(g[k].second, 0.0) << trial;
+        }
+    }
+  }
+  EXPECT_GT(cut, 5);  // the random paths do cross
+}
+
+}  // namespace surface_tests
 
 }  // namespace
 }  // namespace pbdbench

@@ -2,7 +2,9 @@
 // a block resting on a plane: support force = weight; a sliding particle: Coulomb's stopping
 // distance v0^2 / (2 mu g); a bounce: the restitution backward Euler with a conservative barrier
 // implies), no penetration on the 125-ball bowl's first steps, the cyclic-penetration scene
-// against the global projection, and the refusals.
+// against the global projection, and the refusals; between surfaces (point-triangle and edge-edge
+// pairs): a cloth resting on a block's top face (support force = weight, every gap > 0 at every
+// step) and the stack of soft cubes.
 #include "catalog/solver_catalog.hpp"
 #include "reference/ref_contact.hpp"
 
@@ -16,6 +18,8 @@
 #include "config/config.hpp"
 #include "core/contacts.hpp"
 #include "core/generators.hpp"
+#include "core/proximity.hpp"
+#include "core/surface_contact.hpp"
 #include "reference/contact_potential.hpp"
 #include "solver_api/solver.hpp"
 
@@ -30,10 +34,11 @@ SolverOptions be_options(int substeps = 1) {
   return o;
 }
 
-// Sum of the barrier's forces on the dynamic particles (N) at x.
+// Sum of the barrier's forces on the dynamic particles (N) at x: colliders and particle pairs.
 Vec3 barrier_force(const Model& m, const Points& x, double kappa, double d_hat) {
   Vec3 f = Vec3::Zero();
   for (const Contact& c : find_contacts(m, x, 0.0, d_hat)) {
+    if (c.kind == ContactKind::Triangle) continue;  // the surface pairs: SurfaceBarrier
     const barrier::Gap g = barrier::gap(m, c, x, 0.0);
     f += -kappa * barrier::first(g.d, d_hat) * g.grad.head<3>();
   }
@@ -261,10 +266,10 @@ TEST(RefBeContact, MovingSphereLiftsAParticleWithoutPenetration) {
 TEST(RefBeContact, StackOfBodiesLandsWithoutPenetration) {
   // soft_cube_stack: three tet blocks, two of them [[body]] entries, 4 mm apart; 10 steps: the
   // upper cubes land on the lower ones, particle against particle, and nothing penetrates. The
-  // catalog scene's vertex-triangle contact (which ref-be refuses) is switched off.
+  // catalog scene's vertex-triangle contact is switched off here (particle contact alone; with
+  // it: SurfacesStackWithoutPenetration).
   Scene sc = config::build_scene(config::load("soft_cube_stack"));
   ASSERT_TRUE(sc.model.surface_contact);
-  EXPECT_THROW(make_solver(be_options(), sc.model), std::invalid_argument);
   sc.model.surface_contact = false;
   auto solver = make_solver(be_options(), sc.model);
   State s = sc.initial;
@@ -293,16 +298,6 @@ TEST(RefBeContact, RefusesWhatItCannotRun) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("gap"), std::string::npos) << e.what();
   }
-  // Vertex-triangle contact: refused, naming the key, not run with those contacts ignored.
-  {
-    const Scene sc = config::build_scene(config::load("cloth_over_block"));
-    try {
-      make_solver(be_options(), sc.model);
-      ADD_FAILURE() << "ref-be accepted vertex-triangle contact";
-    } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("scene.surface_contact"), std::string::npos) << e.what();
-    }
-  }
   // ref-bdf still refuses contact, and says why and what to use.
   SolverOptions bdf;
   bdf.name = "ref-bdf";
@@ -321,6 +316,190 @@ TEST(RefBeContact, RefusesWhatItCannotRun) {
   add_chain(d, c);
   d.planes.push_back(PlaneCollider{Vec3::UnitY(), 10.0});
   EXPECT_THROW(make_solver(be_options(), d), std::invalid_argument);
+}
+
+// A small cloth (5 x 5 particles, 0.1 m, 20 g) released 2 mm above the top face of a tet block
+// (2 x 2 x 2 cells, 0.2 m, 1.6 kg) on the ground; particle contact off, so that the cloth is held
+// by the surface pairs alone (point-triangle and edge-edge, with friction).
+const char* const kClothOnBlock = R"(
+[scene]
+kind = "cloth"
+resolution = [5, 5]
+size = [0.1, 0.1]
+origin = [-0.05, 0.2275, -0.05]
+plane = "xz"
+mass = 0.02
+pins = "none"
+radius = 0.005
+stretch_compliance = 1e-6
+shear = true
+shear_compliance = 1e-6
+surface_contact = true
+surface_friction = 0.5
+
+[[body]]
+kind = "tet_block"
+cells = [2, 2, 2]
+size = [0.2, 0.2, 0.2]
+origin = [-0.1, 0.0, -0.1]
+position = [0.0, 0.0105, 0.0]
+density = 200.0
+radius = 0.01
+edge_compliance = 1e-6
+volume_compliance = 1e-9
+
+[[collider]]
+type = "plane"
+normal = [0.0, 1.0, 0.0]
+offset = 0.0
+friction = 0.5
+
+[time]
+dt = 0.016666666666666666
+duration = 1.5
+
+[solver]
+name = "ref-be"
+)";
+
+// The smallest surface gap at x: point-triangle pairs by core/surface_contact's own finder (an
+// implementation independent of the barrier's), edge-edge pairs by the barrier's.
+double min_surface_gap(const Model& m, const barrier::SurfaceBarrier& sb, const Points& x) {
+  double d = 1e300;
+  for (const auto& [p, t] : find_surface_contacts(m, x, 1.0)) {
+    const auto& tri = m.triangles[static_cast<size_t>(t)];
+    d = std::min(d, proximity::point_triangle_distance(x.row(p).transpose(), x.row(tri[0]).transpose(),
+                                                       x.row(tri[1]).transpose(), x.row(tri[2]).transpose()) -
+                        surface_contact_thickness(m, p, t));
+  }
+  for (const barrier::SurfacePair& p : sb.near(x, 1.0))
+    if (p.kind == proximity::PairKind::EdgeEdge) d = std::min(d, barrier::SurfaceBarrier::gap(p, x));
+  return d;
+}
+
+TEST(RefBeContact, ClothRestsOnABlockWithSupportForceEqualToWeight) {
+  Scene sc = config::build_scene(config::load_text(kClothOnBlock, "cloth_on_block.toml"));
+  Model& m = sc.model;
+  m.particle_contact = false;  // the surface pairs alone hold the cloth
+  const barrier::SurfaceBarrier sb(m);
+  const SolverOptions o = be_options();
+  auto solver = make_solver(o, m);
+  State s = sc.initial;
+  double lowest = min_surface_gap(m, sb, s.x);
+  ASSERT_GT(lowest, 0.0);
+  for (int k = 0; k < 90; ++k) {  // 1.5 s
+    solver->step(m, s, 1.0 / 60.0);
+    const double g = min_surface_gap(m, sb, s.x);
+    ASSERT_GT(g, 0.0) << "step " << k;  // no penetration, at every step
+    lowest = std::min(lowest, g);
+  }
+  EXPECT_LT(lowest, o.ref_barrier_distance);  // the cloth did land
+  // At rest: the barrier forces of the surface pairs on the cloth's particles (body 0) sum to its
+  // weight, and the plane's on the block's to the weight of both.
+  const double kappa = automatic_barrier_stiffness(m, o.ref_barrier_distance);
+  double cloth_mass = 0.0, total_mass = 0.0, vmax = 0.0;
+  for (int p = 0; p < m.particle_count(); ++p) {
+    const double mass = 1.0 / m.inv_mass[static_cast<size_t>(p)];
+    total_mass += mass;
+    if (m.particle_body[static_cast<size_t>(p)] == 0) cloth_mass += mass;
+    vmax = std::max(vmax, s.v.row(p).norm());
+  }
+  EXPECT_LT(vmax, 1e-3);
+  double support = 0.0;
+  int pairs[2] = {0, 0};
+  for (const barrier::SurfacePair& p : sb.near(s.x, o.ref_barrier_distance)) {
+    const barrier::SurfaceTerm t = barrier::SurfaceBarrier::term(p, s.x, o.ref_barrier_distance);
+    ++pairs[p.kind == proximity::PairKind::EdgeEdge];
+    for (int i = 0; i < 4; ++i)
+      if (m.particle_body[static_cast<size_t>(p.v[static_cast<size_t>(i)])] == 0) support += -kappa * t.grad[3 * i + 1];
+  }
+  EXPECT_GT(pairs[0], 0);
+  EXPECT_GT(pairs[1], 0);
+  const double g = -m.gravity.y();
+  EXPECT_NEAR(support, cloth_mass * g, 1e-3 * cloth_mass * g);
+  EXPECT_NEAR(barrier_force(m, s.x, kappa, o.ref_barrier_distance).y(), total_mass * g,
+              1e-3 * total_mass * g);
+}
+
+TEST(RefBeContact, SurfacesStackWithoutPenetration) {
+  // soft_cube_stack as catalogued (particle contact and the surface pairs): 30 steps, the upper
+  // cubes land; no surface gap is ever <= 0.
+  const Scene sc = config::build_scene(config::load("soft_cube_stack"));
+  const barrier::SurfaceBarrier sb(sc.model);
+  auto solver = make_solver(be_options(), sc.model);
+  State s = sc.initial;
+  for (int k = 0; k < 30; ++k) {
+    solver->step(sc.model, s, 1.0 / 60.0);
+    ASSERT_GT(min_surface_gap(sc.model, sb, s.x), 0.0) << "step " << k;
+    ASSERT_GT(min_gap(sc.model, s.x, s.time), 0.0) << "step " << k;  // planes, particle pairs too
+  }
+  EXPECT_LT(min_surface_gap(sc.model, sb, s.x), be_options().ref_barrier_distance);
+}
+
+TEST(RefBeContact, FoldedClothKeepsItsLayersApartWithSelfContact) {
+  // An 8 x 16 cloth (0.2 x 0.4 m, radius 5 mm: layers touch at 1 cm) folded in two between rows 7
+  // and 8 (rows j >= 8 turned over onto rows j < 8 and lifted 2 cm); the lower half a trampoline
+  // pinned at its border. With scene.self_contact every self gap stays > 0 at every step and the
+  // upper half stays above the lower; without it (the control) the upper half falls through.
+  constexpr int nx = 8, ny = 16, half = ny / 2;
+  for (bool self : {true, false}) {
+    Model m;
+    ClothSpec c;
+    c.nx = nx;
+    c.ny = ny;
+    c.width = 0.2;
+    c.height = 0.4;
+    c.origin = Vec3(-0.1, 0.5, -0.2);
+    c.mass = 0.05;
+    c.radius = 0.005;
+    c.stretch.compliance = 1e-6;
+    c.shear_params.compliance = 1e-5;
+    c.bending = false;
+    add_cloth(m, c);
+    for (int j = 0; j < half; ++j)
+      for (int i = 0; i < nx; ++i)
+        if (j == 0 || i == 0 || i == nx - 1) m.inv_mass[static_cast<size_t>(j * nx + i)] = 0.0;
+    m.self_contact = self;
+    // A ground far below, so that both runs take ref-be's contact path (the same integrator).
+    m.planes.push_back(PlaneCollider{Vec3::UnitY(), 10.0});
+    State s = rest_state(m);
+    for (int j = half; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        s.x(j * nx + i, 2) = -s.x(j * nx + i, 2);
+        s.x(j * nx + i, 1) += 0.02;
+      }
+    const barrier::SurfaceBarrier sb(m);
+    SCOPED_TRACE(self ? "self-contact on" : "self-contact off (control)");
+    EXPECT_EQ(sb.enabled(), self);
+    SolverOptions o = be_options();
+    o.ref_max_newton = 500;  // the control's crumpling cloth needs more than the default 50
+    auto solver = make_solver(o, m);
+    double lowest = 1e300;
+    for (int k = 0; k < 40; ++k) {
+      try {
+        solver->step(m, s, 1.0 / 60.0);
+      } catch (const std::exception& e) {
+        FAIL() << (self ? "self-contact on" : "control") << ", step " << k << ": " << e.what();
+      }
+      if (!self) continue;
+      const double g = min_surface_gap(m, sb, s.x);
+      ASSERT_GT(g, 0.0) << "step " << k;
+      lowest = std::min(lowest, g);
+    }
+    // The upper half's rows 10 to 15 lie over the lower half's rows 5 to 0.
+    double upper = 0.0, lower = 0.0;
+    for (int j = 10; j < ny; ++j)
+      for (int i = 1; i < nx - 1; ++i) {
+        upper += s.x(j * nx + i, 1);
+        lower += s.x((ny - 1 - j) * nx + i, 1);
+      }
+    if (self) {
+      EXPECT_GT(upper, lower);
+      EXPECT_LT(lowest, be_options().ref_barrier_distance);  // the layers did meet
+    } else {
+      EXPECT_LT(upper, lower);  // the control: it passes through
+    }
+  }
 }
 
 TEST(RefBeContact, Deterministic) {
