@@ -122,6 +122,7 @@ Gap gap(const Model& model, const Contact& c, const Points& x, double t) {
       out.hess.bottomRightCorner<3, 3>() = H;
       break;
     }
+    case ContactKind::Edge:  // (edge-edge: refused with it)
     case ContactKind::Triangle:  // refused by make_ref_be_contact
       throw std::logic_error("ref-be: a vertex-triangle contact reached the barrier");
   }
