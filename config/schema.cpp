@@ -476,16 +476,18 @@ const std::vector<KeySpec>& common_keys() {
         text("scene.kind", "particle", kind_names(),
              "the kind of scene; it decides which other scene.* keys exist"),
         boolean("scene.surface_contact", false,
-                "vertex-triangle contact between bodies: every particle against the surface "
+                "contact between the surfaces of bodies: every particle against the surface "
                 "triangles (a cloth's, a tet body's boundary) of the other bodies ([[body]] "
-                "entries and the scene's own); gap |x - q| - (r_p + the triangle's largest r); "
+                "entries and the scene's own), gap |x - q| - (r_p + the triangle's largest r); "
+                "and their edges against each other, gap |P - Q| - (the larger r of each edge); "
                 "pbd, xpbd and their variants (docs/scenarios.md)"),
         boolean("scene.self_contact", false,
-                "vertex-triangle contact within a body without tets (a cloth against itself): "
-                "its particles against its own triangles, those touching the particle or its "
-                "neighbours excepted; pbd, xpbd and their variants (docs/scenarios.md)"),
+                "contact within a body without tets (a cloth against itself): its particles "
+                "against its own triangles, those touching the particle or its neighbours "
+                "excepted, and its edges against its own edges, those sharing a vertex or a "
+                "neighbour excepted; pbd, xpbd and their variants (docs/scenarios.md)"),
         real("scene.surface_friction", 0.0, "1", at_least(0),
-             "Coulomb friction coefficient of the vertex-triangle contacts"),
+             "Coulomb friction coefficient of the vertex-triangle and edge-edge contacts"),
         real("time.dt", run.dt, "s", above_upto(0, 1), "time step of one solver step"),
         real("time.duration", run.duration, "s", above_upto(0, 1e6),
              "simulated time; steps = round(duration / dt)"),

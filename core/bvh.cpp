@@ -137,6 +137,42 @@ int TriangleBvh::build(int first, int count) {
   return id;
 }
 
+void TriangleBvh::refit(const Points& vertices) {
+  if (vertices.rows() != vertices_.rows())
+    throw std::invalid_argument("TriangleBvh::refit: " + std::to_string(vertices.rows()) +
+                                " vertices for a mesh of " + std::to_string(vertices_.rows()));
+  if (!vertices.allFinite()) throw std::invalid_argument("TriangleBvh::refit: a vertex is not finite");
+  vertices_ = vertices;
+  const int nt = triangle_count();
+  for (int t = 0; t < nt; ++t) {
+    Box b;
+    for (int v : triangles_[static_cast<size_t>(t)]) b.grow(Vec3(vertices_.row(v).transpose()));
+    tri_box_[static_cast<size_t>(t)] = b;
+  }
+  // build() numbers a node before its children: in reverse order, children come first.
+  for (size_t id = nodes_.size(); id-- > 0;) {
+    Node& n = nodes_[id];
+    Box b;
+    if (n.left < 0) {
+      for (int i = n.first; i < n.first + n.count; ++i)
+        b.grow(tri_box_[static_cast<size_t>(order_[static_cast<size_t>(i)])]);
+    } else {
+      b.grow(nodes_[static_cast<size_t>(n.left)].box);
+      b.grow(nodes_[static_cast<size_t>(n.right)].box);
+    }
+    n.box = b;
+  }
+}
+
+double TriangleBvh::box_area() const {
+  double area = 0.0;
+  for (const Node& n : nodes_) {
+    const Vec3 d = (n.box.hi - n.box.lo).cwiseMax(Vec3::Zero());
+    area += 2.0 * (d.x() * d.y() + d.y() * d.z() + d.z() * d.x());
+  }
+  return area;
+}
+
 const TriangleBvh::Box& TriangleBvh::bounds() const {
   static const Box empty;
   return nodes_.empty() ? empty : nodes_[0].box;

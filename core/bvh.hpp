@@ -2,7 +2,10 @@
 // (issue 17; not yet wired into Model's colliders or core/contacts.hpp) and of vertex-triangle
 // contact. Axis-aligned boxes, split at the median of the triangles' centroids along the box's
 // longest axis, at most kLeafSize triangles a leaf. Built once; queries are const and
-// thread-safe.
+// thread-safe. A mesh whose vertices move (a cloth, a soft body) may be refit instead of rebuilt:
+// the same tree, its boxes recomputed bottom-up from the moved vertices (every box still bounds
+// its triangles, so a query finds the same triangles as a tree built anew; only the pruning, the
+// tree's quality, may degrade: box_area() measures it).
 //
 // The closest point on a triangle is found by the Voronoi-region test of Ericson, "Real-Time
 // Collision Detection" (2005), sec. 5.1.5: the point's region (a vertex, an edge, or the face)
@@ -50,6 +53,18 @@ class TriangleBvh {
   TriangleBvh(const Points& vertices, const std::vector<std::array<int, 3>>& triangles);
 
   int triangle_count() const { return static_cast<int>(triangles_.size()); }
+  int vertex_count() const { return static_cast<int>(vertices_.rows()); }
+
+  // Moves the mesh to `vertices` (as many rows as before; the same triangles) and recomputes
+  // every box bottom-up: a leaf's from its triangles, a node's from its children. The tree's
+  // shape (which triangles share a leaf) is kept. Throws std::invalid_argument for another
+  // vertex count or a non-finite vertex (the tree is then unchanged).
+  void refit(const Points& vertices);
+
+  // The sum of the surface areas of all the nodes' boxes, m^2: the expected cost of a query
+  // grows with it (the surface area heuristic); a refit tree's against a fresh one's tells how
+  // far its quality has degraded.
+  double box_area() const;
   const Box& bounds() const;  // of the whole mesh (an empty box for no triangles)
 
   // The closest point of the mesh to p among the triangles within max_distance of it (ties: the

@@ -18,6 +18,7 @@ const char* to_string(ContactKind kind) {
     case ContactKind::Particle: return "particle";
     case ContactKind::Mesh: return "mesh";
     case ContactKind::Triangle: return "triangle";
+    case ContactKind::Edge: return "edge";
   }
   return "unknown";
 }
@@ -115,7 +116,8 @@ void find_particle_pairs(const Model& model, const Points& x, double margin,
 
 }  // namespace
 
-std::vector<Contact> find_contacts(const Model& model, const Points& x, double t, double margin) {
+std::vector<Contact> find_contacts(const Model& model, const Points& x, double t, double margin,
+                                   SurfaceContactCache* surface_cache) {
   std::vector<Contact> out;
   const int n = model.particle_count();
   // Particle-major loops, so that each kind comes out sorted by (a, b) as documented.
@@ -166,9 +168,12 @@ std::vector<Contact> find_contacts(const Model& model, const Points& x, double t
     }
   }
   if (model.particle_contact) find_particle_pairs(model, x, margin, out);
-  if (model.surface_contact || model.self_contact)
-    for (const auto& [p, tri] : find_surface_contacts(model, x, margin))
+  if (model.surface_contact || model.self_contact) {
+    for (const auto& [p, tri] : find_surface_contacts(model, x, margin, surface_cache))
       out.push_back({ContactKind::Triangle, p, tri});
+    for (const auto& e : find_edge_contacts(model, x, margin, surface_cache))
+      out.push_back({ContactKind::Edge, e[0], e[1], e[2], e[3]});
+  }
   return out;
 }
 
@@ -217,6 +222,16 @@ ConstraintEval eval_contact(const Model& model, const Contact& contact, const Po
       for (int k = 0; k < 3; ++k) e.grad[static_cast<size_t>(k + 1)] = -pt.bary[k] * pt.normal;
       return e;
     }
+    case ContactKind::Edge: {
+      const SegmentSegment ss = segment_segment(xa, x.row(contact.b).transpose(),
+                                                x.row(contact.c).transpose(), x.row(contact.d).transpose());
+      e.C = ss.distance - edge_contact_thickness(model, {contact.a, contact.b, contact.c, contact.d});
+      e.grad[0] = (1.0 - ss.s) * ss.normal;
+      e.grad[1] = ss.s * ss.normal;
+      e.grad[2] = -(1.0 - ss.t) * ss.normal;
+      e.grad[3] = -ss.t * ss.normal;
+      return e;
+    }
     case ContactKind::Mesh: {
       const MeshCollider& mesh = model.meshes[static_cast<size_t>(contact.b)];
       const MeshDistance md = mesh_distance(mesh, xa - mesh_offset(model, mesh, t));
@@ -236,6 +251,7 @@ double contact_restitution(const Model& model, const Contact& c) {
     case ContactKind::Particle: return model.particle_restitution;
     case ContactKind::Mesh: return model.meshes[static_cast<size_t>(c.b)].restitution;
     case ContactKind::Triangle: return model.particle_restitution;
+    case ContactKind::Edge: return model.particle_restitution;
   }
   return 0.0;
 }
@@ -247,6 +263,7 @@ double contact_friction(const Model& model, const Contact& c) {
     case ContactKind::Particle: return model.particle_friction;
     case ContactKind::Mesh: return model.meshes[static_cast<size_t>(c.b)].friction;
     case ContactKind::Triangle: return model.surface_friction;
+    case ContactKind::Edge: return model.surface_friction;
   }
   return 0.0;
 }
@@ -262,6 +279,9 @@ int contact_particles(const Model& model, const Contact& c, std::array<int, 4>& 
       out = {c.a, tri[0], tri[1], tri[2]};
       return 4;
     }
+    case ContactKind::Edge:
+      out = {c.a, c.b, c.c, c.d};
+      return 4;
     default: return 1;
   }
 }
@@ -281,8 +301,10 @@ Vec3 contact_surface_velocity(const Model& model, const Contact& c, const Points
       return motion_velocity(model.motions[static_cast<size_t>(m.motion)], t);
     }
     case ContactKind::Triangle:
+    case ContactKind::Edge:
       // The closest point's velocity needs the positions: the velocity pass takes the
-      // triangle's vertices' velocities through the gradient (solver_api/velocity_pass.cpp).
+      // triangle's (edges') vertices' velocities through the gradient
+      // (solver_api/velocity_pass.cpp).
       return Vec3::Zero();
   }
   return Vec3::Zero();

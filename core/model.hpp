@@ -169,11 +169,13 @@ struct Model {
   bool particle_contact = false;        // contacts between particles not joined by a constraint
   double particle_restitution = 0.0;    // e for particle-particle contacts
   double particle_friction = 0.0;       // mu for particle-particle contacts
-  // Vertex-triangle contact (core/surface_contact.hpp): particles against the triangles above;
-  // e: particle_restitution.
+  // Contact between surfaces (core/surface_contact.hpp): particles against the triangles above,
+  // and their edges against each other; e: particle_restitution.
   bool surface_contact = false;         // between bodies (particle_body), both moving
   bool self_contact = false;            // within a body without tets (a cloth against itself)
-  double surface_friction = 0.0;        // mu for vertex-triangle contacts
+  bool edge_contact = true;             // with either: edge-edge as well as vertex-triangle
+                                        // (false: vertex-triangle alone, for controls)
+  double surface_friction = 0.0;        // mu for vertex-triangle and edge-edge contacts
   std::vector<int> particle_body;       // (n) 0: the scene's own body, i + 1: [[body]] entry i;
                                         // empty: one body
 

@@ -124,8 +124,9 @@ Gap gap(const Model& model, const Contact& c, const Points& x, double t) {
       out.hess.bottomRightCorner<3, 3>() = H;
       break;
     }
-    case ContactKind::Triangle:  // ref-be takes these as SurfaceBarrier pairs, never here
-      throw std::logic_error("ref-be: a vertex-triangle contact reached the barrier");
+    case ContactKind::Edge:      // ref-be takes surface contacts (vertex-triangle, edge-edge)
+    case ContactKind::Triangle:  // as SurfaceBarrier pairs, never here
+      throw std::logic_error("ref-be: a surface contact (vertex-triangle or edge-edge) reached the barrier");
   }
   return out;
 }

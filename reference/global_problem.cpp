@@ -240,6 +240,7 @@ Mat12 GlobalProblem::row_hessian(int r, const Points& x) const {
       out.block<3, 3>(0, 0) = (md.distance < 0.0 ? -1.0 : 1.0) * md.hessian;
       return out;
     }
+    case ContactKind::Edge:  // (edge-edge: refused with it)
     case ContactKind::Triangle:  // refused by the constructor
       throw std::logic_error("global problem: a vertex-triangle contact reached the Hessian");
   }

@@ -97,12 +97,14 @@ class RefBeContact final : public Solver {
   const EnergyModel& energy() const { return scene_.system().energy(); }
 
   // The contact set at x (gaps below d_hat) at time t: colliders and particle pairs (the
-  // vertex-triangle contacts of find_contacts are left to the surface pairs).
+  // vertex-triangle and edge-edge contacts of find_contacts are left to the surface pairs).
   std::vector<Contact> active(const Model& model, const Points& x, double t) const {
     std::vector<Contact> out = find_contacts(model, x, t, d_hat_);
     if (surface_.enabled())
       out.erase(std::remove_if(out.begin(), out.end(),
-                               [](const Contact& c) { return c.kind == ContactKind::Triangle; }),
+                               [](const Contact& c) {
+                                 return c.kind == ContactKind::Triangle || c.kind == ContactKind::Edge;
+                               }),
                 out.end());
     return out;
   }

@@ -22,15 +22,19 @@ void velocity_pass(const Model& model, const std::vector<Contact>& contacts,
     if (!(e.C <= kTouchingTolerance || lambda[j] > 0.0)) continue;
     // The contact's particles and their weights along n: s_i = grad_i . n (1 for a, -1 for a
     // pair's b, -u, -v, -w for a triangle's vertices); the relative velocity is sum s_i v_i
-    // minus a collider's surface velocity, and W = sum w_i s_i^2 its inverse mass along n.
+    // minus a collider's surface velocity, and W = sum w_i s_i^2 its inverse mass along n
+    // (edge-edge: 1 - s, s, t - 1, -t).
     std::array<int, 4> ps{};
     const int count = contact_particles(model, c, ps);
-    const Vec3 n = e.grad[0];
+    // n: grad[0], a unit vector, for all kinds but edge-edge, whose first edge's two gradients
+    // (1 - s) n and s n sum to it.
+    const bool edge = c.kind == ContactKind::Edge;
+    const Vec3 n = edge ? Vec3(e.grad[0] + e.grad[1]) : e.grad[0];
     std::array<double, 4> s{}, w{};
     double W = 0.0;
     for (int i = 0; i < count; ++i) {
       // Exactly 1 and -1 for a and a pair's b (n . n is 1 only to round-off).
-      s[static_cast<size_t>(i)] = i == 0 ? 1.0
+      s[static_cast<size_t>(i)] = i == 0 && !edge ? 1.0
                                   : c.kind == ContactKind::Particle
                                       ? -1.0
                                       : e.grad[static_cast<size_t>(i)].dot(n);

@@ -52,11 +52,12 @@ struct ContactItem {
   bool valid = true;             // Plane: |n| > 0
   const MeshCollider* mesh = nullptr;  // Mesh: the collider (g: its offset at t_end; r: r_a);
                                        // C and grad from its signed distance at every projection
-  std::array<std::int32_t, 3> t{-1, -1, -1};  // Triangle: its vertices (r: the thickness)
+  std::array<std::int32_t, 3> t{-1, -1, -1};  // Triangle: its vertices; Edge: b, c, d (the
+                                              // first edge a-b, the second c-d); r: the thickness
   std::array<T, 3> wt{0, 0, 0};               // their inverse masses, 1/kg
 };
 
-// Corrections per contact in the Jacobi buffer: up to four particles (a vertex-triangle contact).
+// Corrections per contact in the Jacobi buffer: up to four particles (vertex-triangle, edge-edge).
 constexpr int kContactDx = 12;
 
 template <class T>
@@ -526,6 +527,15 @@ class Program final : public CompiledProjection {
         c.r = static_cast<T>(surface_contact_thickness(model, contact.a, contact.b));
         break;
       }
+      case ContactKind::Edge: {
+        const std::array<int, 3> others{contact.b, contact.c, contact.d};
+        for (int k = 0; k < 3; ++k) {
+          c.t[static_cast<size_t>(k)] = others[static_cast<size_t>(k)];
+          c.wt[static_cast<size_t>(k)] = static_cast<T>(model.inv_mass[static_cast<size_t>(others[static_cast<size_t>(k)])]);
+        }
+        c.r = static_cast<T>(edge_contact_thickness(model, {contact.a, contact.b, contact.c, contact.d}));
+        break;
+      }
       case ContactKind::Mesh: {
         const MeshCollider& m = model.meshes[static_cast<size_t>(contact.b)];
         c.mesh = &m;
@@ -571,6 +581,10 @@ class Program final : public CompiledProjection {
   // Contact k: C at the current positions, its projection (pbd: k = 1; xpbd: the multiplier kept
   // >= 0), whether it is violated. With Jacobi the correction goes to contact_dx_ (12 per contact)
   // and the multiplier's change to contact_dlambda_. Returns 1 when skipped.
+  static Vec3 dv(const V3<T>& v) {
+    return Vec3(static_cast<double>(v.x), static_cast<double>(v.y), static_cast<double>(v.z));
+  }
+
   template <bool Jacobi>
   int project_contact(int k) {
     ContactItem<T>& c = contacts_[static_cast<size_t>(k)];
@@ -579,7 +593,10 @@ class Program final : public CompiledProjection {
     V3<T> xb{};
     T C = 0;
     V3<T> ga{}, gb{};
-    std::array<T, 3> bary{T(0), T(0), T(0)};  // Triangle: the closest point's coordinates
+    // Triangle, Edge: the gradient of t[k] is -bary[k] gn, gn the unit normal (Triangle: the
+    // closest point's coordinates, gn = ga; Edge: -s, 1 - t, t, ga = (1 - s) gn).
+    std::array<T, 3> bary{T(0), T(0), T(0)};
+    V3<T> gn{};
     bool valid = c.valid;
     switch (c.kind) {
       case ContactKind::Plane:
@@ -608,15 +625,24 @@ class Program final : public CompiledProjection {
       }
       case ContactKind::Triangle: {
         // The closest point in double, as the mesh's; grad: n for a, -bary_k n for the vertices.
-        auto dv = [](const V3<T>& v) {
-          return Vec3(static_cast<double>(v.x), static_cast<double>(v.y), static_cast<double>(v.z));
-        };
         const PointTriangle pt = point_triangle(dv(xa), dv(load3(P, c.t[0])), dv(load3(P, c.t[1])),
                                                 dv(load3(P, c.t[2])));
         C = static_cast<T>(pt.distance) - c.r;
         ga = V3<T>{static_cast<T>(pt.normal.x()), static_cast<T>(pt.normal.y()),
                    static_cast<T>(pt.normal.z())};
         for (int k = 0; k < 3; ++k) bary[static_cast<size_t>(k)] = static_cast<T>(pt.bary[k]);
+        gn = ga;
+        break;
+      }
+      case ContactKind::Edge: {
+        // The closest points in double, as the triangle's.
+        const SegmentSegment ss = segment_segment(dv(xa), dv(load3(P, c.t[0])), dv(load3(P, c.t[1])),
+                                                  dv(load3(P, c.t[2])));
+        C = static_cast<T>(ss.distance) - c.r;
+        gn = V3<T>{static_cast<T>(ss.normal.x()), static_cast<T>(ss.normal.y()),
+                   static_cast<T>(ss.normal.z())};
+        ga = static_cast<T>(1.0 - ss.s) * gn;
+        bary = {static_cast<T>(-ss.s), static_cast<T>(1.0 - ss.t), static_cast<T>(ss.t)};
         break;
       }
       case ContactKind::Mesh: {
@@ -639,9 +665,10 @@ class Program final : public CompiledProjection {
     if (!(C < T(0))) return 0;
     contact_active_[static_cast<size_t>(k)] = 1;
     T wsum = c.wa * dot(ga, ga) + c.wb * dot(gb, gb);
-    if (c.kind == ContactKind::Triangle)
+    const bool four = c.kind == ContactKind::Triangle || c.kind == ContactKind::Edge;
+    if (four)
       for (int i = 0; i < 3; ++i)
-        wsum = wsum + c.wt[static_cast<size_t>(i)] * bary[static_cast<size_t>(i)] * bary[static_cast<size_t>(i)] * dot(ga, ga);
+        wsum = wsum + c.wt[static_cast<size_t>(i)] * bary[static_cast<size_t>(i)] * bary[static_cast<size_t>(i)] * dot(gn, gn);
     if (!(wsum > T(0))) return 1;
     T dlambda;
     T& lambda = contact_lambda_[static_cast<size_t>(k)];
@@ -652,16 +679,16 @@ class Program final : public CompiledProjection {
     }
     const V3<T> da = (c.wa * dlambda) * ga;
     const V3<T> db = (c.wb * dlambda) * gb;
-    // Triangle: vertex k moves by w_k dlambda (-bary_k n).
+    // Triangle, Edge: particle t_k moves by w_k dlambda (-bary_k n).
     std::array<V3<T>, 3> dt{};
-    if (c.kind == ContactKind::Triangle)
+    if (four)
       for (int i = 0; i < 3; ++i)
-        dt[static_cast<size_t>(i)] = (-(c.wt[static_cast<size_t>(i)] * dlambda * bary[static_cast<size_t>(i)])) * ga;
+        dt[static_cast<size_t>(i)] = (-(c.wt[static_cast<size_t>(i)] * dlambda * bary[static_cast<size_t>(i)])) * gn;
     if constexpr (Jacobi) {
       T* q = contact_dx_.data() + kContactDx * k;
       q[0] = da.x, q[1] = da.y, q[2] = da.z;
       q[3] = db.x, q[4] = db.y, q[5] = db.z;
-      if (c.kind == ContactKind::Triangle)
+      if (four)
         for (int i = 0; i < 3; ++i) {
           q[3 + 3 * i] = dt[static_cast<size_t>(i)].x;
           q[4 + 3 * i] = dt[static_cast<size_t>(i)].y;
@@ -672,7 +699,7 @@ class Program final : public CompiledProjection {
       lambda = lambda + dlambda;
       if (c.wa != T(0)) store3(P, c.a, xa + da);
       if (c.kind == ContactKind::Particle && c.wb != T(0)) store3(P, c.b, load3(P, c.b) + db);
-      if (c.kind == ContactKind::Triangle)
+      if (four)
         for (int i = 0; i < 3; ++i)
           if (c.wt[static_cast<size_t>(i)] != T(0))
             store3(P, c.t[static_cast<size_t>(i)], load3(P, c.t[static_cast<size_t>(i)]) + dt[static_cast<size_t>(i)]);
@@ -778,7 +805,9 @@ class Program final : public CompiledProjection {
     for (size_t k = 0; k < contacts_.size(); ++k) {
       const ContactItem<T>& c = contacts_[k];
       const T* d = contact_dx_.data() + kContactDx * k;
-      const int sides = c.kind == ContactKind::Particle ? 2 : c.kind == ContactKind::Triangle ? 4 : 1;
+      const int sides = c.kind == ContactKind::Particle                                    ? 2
+                        : c.kind == ContactKind::Triangle || c.kind == ContactKind::Edge ? 4
+                                                                                          : 1;
       for (int side = 0; side < sides; ++side) {
         const T* q = d + 3 * side;
         if (q[0] == T(0) && q[1] == T(0) && q[2] == T(0)) continue;

@@ -629,6 +629,7 @@ class PbdSeedSolver final : public Solver {
         record_normal_push(model, k, out, normal.template cast<double>());
         return true;
       }
+      case ContactKind::Edge:  // (edge-edge: refused with it)
       case ContactKind::Triangle:  // refused by make_pbd_seed_solver: the listing has none
         throw std::logic_error("pbd-seed: a vertex-triangle contact reached the listing");
     }

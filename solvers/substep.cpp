@@ -6,7 +6,7 @@ namespace pbdbench {
 
 void find_substep_contacts(const Model& model, double t_end, double margin, const Points& x,
                            Ordering& ordering, SubstepScratch& work, StepReport& report) {
-  work.contacts = find_contacts(model, work.p, t_end, margin);
+  work.contacts = find_contacts(model, work.p, t_end, margin, &work.surface_cache);
   ordering.set_contacts(model, work.contacts, x);
   work.contact_lambda.assign(work.contacts.size(), 0.0);
   work.contact_active.assign(work.contacts.size(), 0);

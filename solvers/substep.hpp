@@ -16,6 +16,7 @@
 #include "core/cancel.hpp"
 #include "core/contacts.hpp"
 #include "core/model.hpp"
+#include "core/surface_contact.hpp"
 #include "solvers/kernels.hpp"
 #include "solver_api/options.hpp"
 #include "solvers/ordering.hpp"
@@ -43,6 +44,7 @@ struct SubstepScratch {
   std::vector<int> sequence;                    // this sweep's visiting order
   std::vector<std::pair<int, double>> pending;  // Jacobi: (item, dlambda) of this sweep
   JacobiAccumulator jacobi;                     // Jacobi: the corrections of this sweep
+  SurfaceContactCache surface_cache;            // vertex-triangle broad phase, refit per substep
 };
 
 // The contacts of the substep at the predicted positions work.p (find_contacts at t_end with

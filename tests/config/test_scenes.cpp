@@ -47,6 +47,7 @@ const std::map<std::string, int> kCatalogCounts = {
     {"cantilever_plane", 105},  // 21 x 5 vertices
     {"cape_on_character", 384},   // 16 x 24 cloth; the body is a mesh collider
     {"cloth_on_character", 768},  // 24 x 32
+    {"cloth_on_pole", 576},       // 24 x 24 cloth with self-contact; the pole is a mesh collider
     {"cloth_over_block", 919},    // 24 x 24 cloth and a [[body]] of 7 x 7 x 7 vertices
     {"failures/cloth_on_ground", 256},         // 16 x 16
     {"failures/cyclic_penetration", 3},        // A, B and C

@@ -1,6 +1,6 @@
 // Tests of core/bvh: the closest point on a triangle against dense sampling and its optimality
 // conditions; the tree's closest-point and box queries against brute force over random triangle
-// soups; that it prunes; its refusals.
+// soups; that it prunes; its refusals; a refit tree against one built anew on moved vertices.
 #include "core/bvh.hpp"
 
 #include <gtest/gtest.h>
@@ -122,6 +122,49 @@ TEST(TriangleBvh, OverlappingMatchesBruteForce) {
     }
     EXPECT_EQ(got, want) << q;
   }
+}
+
+TEST(TriangleBvh, RefitFindsWhatARebuildFinds) {
+  // A soup moved three times (each vertex by up to 0.3 m, then the whole soup stretched 1.5
+  // times along x): the refit tree and a tree built anew at the moved vertices give the same
+  // triangles for every box query and the same closest triangle for every point; refitting to
+  // the original vertices gives back the original tree's boxes (box_area).
+  Soup s = random_soup(800, 11);
+  TriangleBvh refit(s.v, s.t);
+  const double area0 = refit.box_area();
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> U(-1, 1), W(0.01, 0.3);
+  Points v = s.v;
+  for (int round = 0; round < 3; ++round) {
+    for (Eigen::Index i = 0; i < v.rows(); ++i) v.row(i) += 0.3 * Vec3(U(rng), U(rng), U(rng)).transpose();
+    if (round == 2) v.col(0) *= 1.5;
+    refit.refit(v);
+    const TriangleBvh fresh(v, s.t);
+    EXPECT_GT(refit.box_area(), fresh.box_area()) << round;  // a refit tree is looser
+    long differ = 0;
+    for (int q = 0; q < 200; ++q) {
+      TriangleBvh::Box box;
+      const Vec3 c(U(rng), U(rng), U(rng)), w(W(rng), W(rng), W(rng));
+      box.lo = c - w;
+      box.hi = c + w;
+      std::set<int> a, b;
+      refit.overlapping(box, [&](int t) { a.insert(t); });
+      fresh.overlapping(box, [&](int t) { b.insert(t); });
+      EXPECT_EQ(a, b) << round << ", " << q;
+      differ += static_cast<long>(a.size());
+      const TriangleBvh::Hit ha = refit.closest(c), hb = fresh.closest(c);
+      EXPECT_EQ(ha.triangle, hb.triangle);
+      EXPECT_EQ(ha.distance, hb.distance);
+    }
+    EXPECT_GT(differ, 0);  // the queries do find triangles
+  }
+  refit.refit(s.v);
+  EXPECT_EQ(refit.box_area(), area0);
+  Points bad = s.v;
+  bad(0, 0) = std::nan("");
+  EXPECT_THROW(refit.refit(bad), std::invalid_argument);
+  EXPECT_THROW(refit.refit(s.v.topRows(3)), std::invalid_argument);
+  EXPECT_EQ(refit.box_area(), area0);  // unchanged by a refused refit
 }
 
 TEST(TriangleBvh, EmptyAndRefused) {

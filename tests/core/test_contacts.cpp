@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "core/generators.hpp"
+#include "core/surface_contact.hpp"
 #include "tests/core/test_support.hpp"
 #include "tests/mesh_fixtures.hpp"
 
@@ -224,6 +225,68 @@ TEST(Contacts, VertexTriangleGradientMatchesFiniteDifferencesAndConservesMomentu
   EXPECT_TRUE(find_contacts(m, m.rest_positions, 0.0, 0.2).empty());
   m.surface_contact = false;
   EXPECT_TRUE(find_contacts(m, m.rest_positions, 0.0, 0.3).empty());
+}
+
+TEST(Contacts, EdgeEdgeGradientMatchesFiniteDifferencesAndConservesMomentum) {
+  // Edge (0, 1) against edge (2, 3) at random positions (closest points inside both edges, at an
+  // end of one, at ends of both all occur); the gradient over all four particles, and its
+  // momentum properties.
+  Random rng(37);
+  int failures = 0, interior = 0, clamped = 0;
+  for (int n = 0; n < kConfigurations && failures < 5; ++n) {
+    Model m;
+    for (int i = 0; i < 4; ++i) add_particle(m, Vec3::Zero(), 1.0, 0.01 * (i + 1));
+    m.triangles = {{0, 1, 1}, {2, 3, 3}};  // (the contact reads its particles from the Contact)
+    m.surface_contact = true;
+    const Config4 x{rng.vec(-1, 1), rng.vec(-1, 1), rng.vec(-1, 1), rng.vec(-1, 1)};
+    const Contact c{ContactKind::Edge, 0, 1, 2, 3};
+    const auto eval = [&](const Config4& y) { return eval_contact(m, c, to_points(y, 4), 0.0); };
+    const ConstraintEval e = eval(x);
+    ASSERT_TRUE(e.valid);
+    const SegmentSegment ss = segment_segment(x[0], x[1], x[2], x[3]);
+    const bool inside = ss.s > 0.0 && ss.s < 1.0 && ss.t > 0.0 && ss.t < 1.0;
+    interior += inside;
+    clamped += !inside;
+    std::string problem = test::check_gradient(eval, x, 4);
+    const std::string momentum = test::check_momentum(e, x, 4);
+    problem += (problem.empty() || momentum.empty() ? "" : "; ") + momentum;
+    if (!problem.empty()) {
+      ADD_FAILURE() << "configuration " << n << " (s " << ss.s << ", t " << ss.t << "): " << problem;
+      ++failures;
+    }
+  }
+  EXPECT_GT(interior, 20);
+  EXPECT_GT(clamped, 20);
+  // The closed form: edge (0, 1) along x at height 0.3, edge (2, 3) along z at height 0, crossing
+  // above x = 0.25, z = -0.5 + 0.75: s = 0.25 / 1, t = 0.75; radii 0.01, 0.02 | 0.03, 0.04.
+  Model m;
+  add_particle(m, Vec3(0, 0.3, 0.25), 1.0, 0.01);
+  add_particle(m, Vec3(1, 0.3, 0.25), 1.0, 0.02);
+  add_particle(m, Vec3(0.25, 0, -0.5), 1.0, 0.03);
+  add_particle(m, Vec3(0.25, 0, 0.5), 1.0, 0.04);
+  m.triangles = {{0, 1, 1}, {2, 3, 3}};
+  m.particle_body = {0, 0, 1, 1};
+  m.surface_contact = true;
+  const Contact c{ContactKind::Edge, 0, 1, 2, 3};
+  const ConstraintEval e = eval_contact(m, c, m.rest_positions, 0.0);
+  EXPECT_NEAR(e.C, 0.3 - (0.02 + 0.04), 1e-15);
+  EXPECT_TRUE(test::near(e.grad[0], 0.75 * Vec3::UnitY(), test::kRoundoff));
+  EXPECT_TRUE(test::near(e.grad[1], 0.25 * Vec3::UnitY(), test::kRoundoff));
+  EXPECT_TRUE(test::near(e.grad[2], -0.25 * Vec3::UnitY(), test::kRoundoff));
+  EXPECT_TRUE(test::near(e.grad[3], -0.75 * Vec3::UnitY(), test::kRoundoff));
+  std::array<int, 4> ps{};
+  EXPECT_EQ(contact_particles(m, c, ps), 4);
+  EXPECT_EQ(ps, (std::array<int, 4>{0, 1, 2, 3}));
+  EXPECT_STREQ(to_string(ContactKind::Edge), "edge");
+  // Found below a margin (the degenerate "triangles" are the two edges; their vertex-triangle
+  // distances are larger: 0.3 from a vertex to the other segment at best is not below 0.3).
+  std::vector<Contact> found = find_contacts(m, m.rest_positions, 0.0, 0.25);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].kind, ContactKind::Edge);
+  EXPECT_EQ(std::tie(found[0].a, found[0].b, found[0].c, found[0].d), std::make_tuple(0, 1, 2, 3));
+  EXPECT_TRUE(find_contacts(m, m.rest_positions, 0.0, 0.23).empty());
+  m.surface_contact = false;
+  EXPECT_TRUE(find_contacts(m, m.rest_positions, 0.0, 0.25).empty());
 }
 
 TEST(Contacts, ParticlePairGradientMatchesFiniteDifferencesAndConservesMomentum) {

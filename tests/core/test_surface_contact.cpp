@@ -1,12 +1,15 @@
-// Tests of core/surface_contact: the point-triangle distance on closed forms, the pair rules
-// (bodies, self-contact, neighbours, tet bodies), and the BVH-based finder against brute force.
-// The gradient of a vertex-triangle contact against central differences is in test_contacts.cpp
-// (it is eval_contact's).
+// Tests of core/surface_contact: the point-triangle and segment-segment distances on closed
+// forms, the pair rules (bodies, self-contact, neighbours, tet bodies), the BVH-based finders
+// (vertex-triangle, edge-edge) against brute force, and the cached (refit) broad phase against
+// a fresh one. The gradients of both contacts against central differences are in
+// test_contacts.cpp (they are eval_contact's).
 #include "core/surface_contact.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <set>
 #include <utility>
 #include <vector>
@@ -151,6 +154,134 @@ TEST(SurfaceContact, FinderMatchesBruteForce) {
   }
 }
 
+TEST(SurfaceContact, SegmentSegmentClosedForms) {
+  // Crossing skew segments: x axis at height 0 from -1 to 1, z direction at height 0.2 through
+  // x = 0.5.
+  SegmentSegment ss = segment_segment(Vec3(-1, 0, 0), Vec3(1, 0, 0), Vec3(0.5, 0.2, -1), Vec3(0.5, 0.2, 3));
+  EXPECT_NEAR(ss.distance, 0.2, 1e-15);
+  EXPECT_NEAR(ss.s, 0.75, 1e-15);
+  EXPECT_NEAR(ss.t, 0.25, 1e-15);
+  EXPECT_LT((ss.normal + Vec3::UnitY()).norm(), 1e-15);
+  // The second beyond the first's end: s clamped to 1.
+  ss = segment_segment(Vec3(-1, 0, 0), Vec3(1, 0, 0), Vec3(2, 0.2, -1), Vec3(2, 0.2, 1));
+  EXPECT_EQ(ss.s, 1.0);
+  EXPECT_NEAR(ss.t, 0.5, 1e-15);
+  EXPECT_NEAR(ss.distance, std::sqrt(1.0 + 0.04), 1e-15);
+  // Parallel at distance 0.3, overlapping: the distance is right whatever the points chosen.
+  ss = segment_segment(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0.5, 0.3, 0), Vec3(2, 0.3, 0));
+  EXPECT_NEAR(ss.distance, 0.3, 1e-15);
+  // A point (zero length) against a segment; two points.
+  ss = segment_segment(Vec3(0.5, 1, 0), Vec3(0.5, 1, 0), Vec3(0, 0, 0), Vec3(1, 0, 0));
+  EXPECT_NEAR(ss.distance, 1.0, 1e-15);
+  EXPECT_NEAR(ss.t, 0.5, 1e-15);
+  ss = segment_segment(Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(0, 0, 2), Vec3(0, 0, 2));
+  EXPECT_NEAR(ss.distance, 2.0, 1e-15);
+  // Intersecting: distance 0, the normal the unit cross product of the directions.
+  ss = segment_segment(Vec3(-1, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, -1), Vec3(0, 0, 1));
+  EXPECT_EQ(ss.distance, 0.0);
+  EXPECT_LT((ss.normal.cwiseAbs() - Vec3::UnitY()).norm(), 1e-15);
+  // Against dense sampling of both segments: nothing closer.
+  Random rng(5);
+  for (int trial = 0; trial < 200; ++trial) {
+    const Vec3 a = rng.vec(-1, 1), b = rng.vec(-1, 1), c = rng.vec(-1, 1), d = rng.vec(-1, 1);
+    ss = segment_segment(a, b, c, d);
+    EXPECT_NEAR(((a + ss.s * (b - a)) - (c + ss.t * (d - c))).norm(), ss.distance, 1e-14);
+    double best = 1e300;
+    for (int i = 0; i <= 100; ++i)
+      for (int j = 0; j <= 100; ++j)
+        best = std::min(best, ((a + 0.01 * i * (b - a)) - (c + 0.01 * j * (d - c))).norm());
+    EXPECT_LE(ss.distance, best + 1e-14) << trial;
+  }
+}
+
+TEST(SurfaceContact, EdgeRulesAndEdges) {
+  Model m = two_cloths();
+  const auto edges = surface_edges(m);
+  // A 6 x 6 cloth of 50 triangles: 5 x 6 rows, 6 x 5 columns, 25 diagonals = 85 edges; two.
+  EXPECT_EQ(edges.size(), 170u);
+  EXPECT_TRUE(std::is_sorted(edges.begin(), edges.end()));
+  const std::array<int, 2> e0{0, 1}, far{28, 29}, ring{6, 7}, shared{1, 2}, other{36, 37};
+  EXPECT_FALSE(edge_pair_allowed(m, e0, other));  // both switches off
+  m.surface_contact = true;
+  EXPECT_TRUE(edge_pair_allowed(m, e0, other));
+  EXPECT_FALSE(edge_pair_allowed(m, e0, far));  // within a body: self-contact off
+  m.self_contact = true;
+  EXPECT_TRUE(edge_pair_allowed(m, e0, far));
+  EXPECT_FALSE(edge_pair_allowed(m, e0, shared));  // a shared vertex
+  EXPECT_FALSE(edge_pair_allowed(m, e0, ring));    // neighbours (6 and 7 share triangles with 0)
+  for (int p = 36; p < 72; ++p) m.inv_mass[static_cast<size_t>(p)] = 0.0;
+  for (int p = 0; p < 2; ++p) m.inv_mass[static_cast<size_t>(p)] = 0.0;
+  EXPECT_FALSE(edge_pair_allowed(m, e0, other));  // all four pinned
+}
+
+TEST(SurfaceContact, EdgeFinderMatchesBruteForce) {
+  Random rng(17);
+  for (int trial = 0; trial < 5; ++trial) {
+    Model m = two_cloths();
+    m.surface_contact = true;
+    m.self_contact = trial % 2 == 0;
+    Points x = m.rest_positions;
+    for (Eigen::Index i = 0; i < x.rows(); ++i) x.row(i) += 0.15 * rng.vec(-1, 1).transpose();
+    if (trial == 4) x(5, 1) = std::nan("");
+    const auto edges = surface_edges(m);
+    for (double margin : {0.0, 0.03}) {
+      std::vector<std::array<int, 4>> brute;
+      for (size_t i = 0; i < edges.size(); ++i)
+        for (size_t j = i + 1; j < edges.size(); ++j) {
+          const auto &e = edges[i], &f = edges[j];
+          const std::array<int, 4> ps{e[0], e[1], f[0], f[1]};
+          bool finite = true;
+          for (int p : ps) finite = finite && x.row(p).allFinite();
+          if (!finite || !edge_pair_allowed(m, e, f)) continue;
+          const SegmentSegment ss = segment_segment(x.row(e[0]).transpose(), x.row(e[1]).transpose(),
+                                                    x.row(f[0]).transpose(), x.row(f[1]).transpose());
+          if (ss.distance - edge_contact_thickness(m, ps) < margin) brute.push_back(ps);
+        }
+      const auto found = find_edge_contacts(m, x, margin);
+      EXPECT_EQ(found, brute) << "trial " << trial << ", margin " << margin;
+      EXPECT_FALSE(found.empty()) << "trial " << trial;
+      SurfaceContactCache cache;
+      EXPECT_EQ(find_edge_contacts(m, x, margin, &cache), brute);
+    }
+  }
+}
+
+TEST(SurfaceContact, CachedBroadPhaseFindsTheSameContacts) {
+  // Two cloths moved over 30 calls (a drift and a growing jitter, as substeps would move them):
+  // with a cache (refit, or rebuilt by its rule) the finder returns exactly what a BVH built anew
+  // returns; both refits and rebuilds happen; a non-finite position falls back and then rebuilds;
+  // another model's triangles are not served from the cache.
+  Random rng(3);
+  Model m = two_cloths();
+  m.surface_contact = true;
+  m.self_contact = true;
+  SurfaceContactCache cache;
+  Points x = m.rest_positions;
+  long compared = 0;
+  for (int call = 0; call < 30; ++call) {
+    for (Eigen::Index i = 0; i < x.rows(); ++i)
+      x.row(i) += (0.005 * call) * rng.vec(-1, 1).transpose() + Vec3(0.0, -0.002, 0.0).transpose();
+    Points y = x;
+    if (call == 20) y(3, 0) = std::nan("");
+    const auto fresh = find_surface_contacts(m, y, 0.02);
+    EXPECT_EQ(find_surface_contacts(m, y, 0.02, &cache), fresh) << "call " << call;
+    const auto fresh_edges = find_edge_contacts(m, y, 0.02);
+    EXPECT_EQ(find_edge_contacts(m, y, 0.02, &cache), fresh_edges) << "call " << call;
+    compared += static_cast<long>(fresh.size() + fresh_edges.size());
+  }
+  EXPECT_GT(compared, 0);
+  EXPECT_GT(cache.refits(), 0);
+  // Two trees (triangles, edges): each built first, after the non-finite call, and by the area
+  // rule at least once.
+  std::printf("builds %ld, refits %ld\n", cache.builds(), cache.refits());
+  EXPECT_GE(cache.builds(), 6);
+  Model other = m;
+  other.triangles.pop_back();
+  const long builds = cache.builds();
+  EXPECT_EQ(find_surface_contacts(other, x, 0.02, &cache), find_surface_contacts(other, x, 0.02));
+  EXPECT_EQ(cache.builds(), builds + 1);
+}
+
 TEST(SurfaceContact, ContactsFollowTheFlagsAndComeLast) {
   Model m = two_cloths();
   m.planes.push_back(PlaneCollider{});  // y = 0: body 0's particles touch it at margin 0.05
@@ -166,14 +297,23 @@ TEST(SurfaceContact, ContactsFollowTheFlagsAndComeLast) {
     EXPECT_EQ(on[k].a, off[k].a);
     EXPECT_EQ(on[k].b, off[k].b);
   }
+  // Vertex-triangle contacts, then edge-edge ones (the layers' parallel edges, 0.05 m apart).
+  size_t edges = 0;
   for (size_t k = off.size(); k < on.size(); ++k) {
-    EXPECT_EQ(on[k].kind, ContactKind::Triangle);
+    if (on[k].kind == ContactKind::Edge) ++edges;
+    else EXPECT_EQ(edges, 0u) << "a vertex-triangle contact after an edge-edge one";
+    EXPECT_TRUE(on[k].kind == ContactKind::Triangle || on[k].kind == ContactKind::Edge);
     const ConstraintEval e = eval_contact(m, on[k], m.rest_positions, 0.0);
     EXPECT_LT(e.C, 0.05);
   }
+  EXPECT_GT(edges, 0u);
+  EXPECT_EQ(on[off.size()].kind, ContactKind::Triangle);
   std::array<int, 4> ps{};
-  EXPECT_EQ(contact_particles(m, on.back(), ps), 4);
-  EXPECT_EQ(ps[0], on.back().a);
+  EXPECT_EQ(contact_particles(m, on[off.size()], ps), 4);
+  EXPECT_EQ(ps[0], on[off.size()].a);
+  m.edge_contact = false;  // vertex-triangle alone
+  const std::vector<Contact> alone = find_contacts(m, m.rest_positions, 0.0, 0.05);
+  EXPECT_EQ(alone.size(), on.size() - edges);
 }
 
 }  // namespace

@@ -15,11 +15,25 @@
 //   lowest vertex more than 0.1 m below the block's top).
 // - A cloth dropped on a sparse block (vertices 15 cm apart, radius 5 mm, so that particle
 //   contact alone cannot stop it) stays above the block's top face with the contact, every gap
-//   above minus half the thickness (1 cm); without it (the control) it falls through.
+//   above minus half the thickness (1 cm); without it (the control) it falls through. In every
+//   projection order (pbd's Jacobi sweeps included: see the test), no cloth particle is below
+//   the top face at any step.
 // - A folded cloth (the lower half a trampoline pinned at its border, the upper half 2 cm above
 //   it, released): with self-contact no vertex of the upper half crosses the lower half (the
 //   count of crossings, by the sign of its height over the lower layer, is 0); without it (the
 //   control) most of them cross.
+// - Edge through edge (written with edge-edge contact, issue 17): a triangle falling edge first
+//   across a pinned triangle's top edge, their edges crossing at right angles, no vertex ever
+//   within 0.3 m of the other's triangle. With edge-edge contact, between bodies and (the two
+//   triangles one cloth body) with self-contact, the falling edge stays above the pinned one at
+//   every step (its midpoint at least the thickness 1 cm above, less half of it, 5 mm; every
+//   edge-edge gap above -5 mm); with vertex-triangle contact alone (the control,
+//   Model::edge_contact off) it passes through (its midpoint 5 cm below the edge at some step).
+// - A cloth folding onto itself over a thin pole (catalog cloth_on_pole, 1.5 s; rule written
+//   before its first run): with self-contact (as catalogued) no cloth edge passes through a cloth
+//   triangle at any step (the count of such crossings, edges through triangles that share no
+//   vertex with them, is 0); without it (the control) the halves swinging under the pole pass
+//   through each other (more than 10 crossings at some step).
 // - The stack of soft cubes (catalog soft_cube_stack, 1.5 s), as catalogued and with
 //   vertex-triangle contact alone (particle contact switched off): no vertex of a cube enters
 //   another cube (signed distance to its surface >= 0) at any step, and at the end each cube is
@@ -34,6 +48,7 @@
 
 #include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
+#include "core/bvh.hpp"
 #include "core/contacts.hpp"
 #include "core/generators.hpp"
 #include "core/mesh_collider.hpp"
@@ -144,49 +159,71 @@ SolverOptions options_for(const std::string& name) {
   return o;
 }
 
+bool layer_height(const Points& x, const std::vector<std::array<int, 3>>& tris, double px,
+                  double pz, double& y);
+
 TEST(SurfaceContact, SparseBlockHoldsTheClothInEveryProjectionOrder) {
   // The projection orders reach the contact through different code (Gauss-Seidel in sequence,
-  // by colour, Jacobi with its correction buffers; float; threads): each keeps the cloth on the
-  // block (its centre above the block's top vertex), every gap above minus half the thickness
-  // (1 cm), under pbd and xpbd, except pbd with Jacobi sweeps, which lets it through (below).
+  // by colour, Jacobi with its correction buffers; float; threads): each keeps every cloth
+  // particle above the block's top face (its height over the face's triangles beneath it, as
+  // they are at that step) at every step, every gap above minus half the thickness (1 cm), under
+  // pbd and xpbd; and with vertex-triangle contact alone (Model::edge_contact off).
+  // pbd with Jacobi sweeps was once recorded here as letting the cloth through the face: it does
+  // not. The check then was the lowest centre particle against the block's highest vertex, and
+  // under pbd's averaged Jacobi sweeps the block is softer: its top face sags, its centre vertex
+  // 2.2 cm below its corners (printed below), and the cloth lies on it, below the corners but
+  // above the face. The sag is Jacobi's slow convergence of the block's own constraints (each
+  // correction divided by the particle's constraint count), not the contact's.
   const ProjectionOrder orders[] = {ProjectionOrder::Sequential, ProjectionOrder::Reversed,
                                     ProjectionOrder::Shuffled, ProjectionOrder::Colored,
                                     ProjectionOrder::Jacobi, ProjectionOrder::GroupedShuffled};
-  const Model m = cloth_on_sparse_block(true);
-  for (const char* name : kSolvers)
-    for (int run = 0; run < 8; ++run) {
-      // The six orders in double, then sequential in float and colored with 2 threads.
-      const ProjectionOrder order = run < 6 ? orders[run] : run == 6 ? orders[0] : orders[3];
-      SolverOptions o = options_for(name);
-      o.order = order;
-      if (run == 6) o.precision = Precision::Float;
-      if (run == 7) o.threads = 2;
-      if (order == ProjectionOrder::Jacobi) o.iterations = 40;  // Jacobi converges slower
-      auto solver = make_solver(o, m);
-      State s = rest_state(m);
-      double worst = 1e300, lowest_centre = 1e300;
-      for (int k = 0; k < 40; ++k) {
-        solver->step(m, s, 1.0 / 60.0);
-        worst = std::min(worst, min_surface_gap(m, s.x));
+  for (bool edges : {true, false}) {
+    Model m = cloth_on_sparse_block(true);
+    m.edge_contact = edges;
+    std::vector<std::array<int, 3>> top;  // the block's triangles on its top face
+    for (const auto& t : m.triangles)
+      if (t[0] < 27 && m.rest_positions(t[0], 1) > 0.3 && m.rest_positions(t[1], 1) > 0.3 &&
+          m.rest_positions(t[2], 1) > 0.3)
+        top.push_back(t);
+    ASSERT_EQ(top.size(), 8u);
+    for (const char* name : kSolvers)
+      for (int run = 0; run < 9; ++run) {
+        // The six orders in double, then sequential in float, colored with 2 threads, and
+        // Jacobi with 200 sweeps.
+        const ProjectionOrder order = run < 6 ? orders[run] : run == 6 ? orders[0] : run == 7 ? orders[3] : orders[4];
+        SolverOptions o = options_for(name);
+        o.order = order;
+        if (run == 6) o.precision = Precision::Float;
+        if (run == 7) o.threads = 2;
+        if (order == ProjectionOrder::Jacobi) o.iterations = run == 8 ? 200 : 40;  // slower
+        auto solver = make_solver(o, m);
+        State s = rest_state(m);
+        double worst = 1e300;
+        int most_below = 0;
+        for (int k = 0; k < 40; ++k) {
+          solver->step(m, s, 1.0 / 60.0);
+          worst = std::min(worst, min_surface_gap(m, s.x));
+          int below = 0;
+          for (int p = 27; p < m.particle_count(); ++p) {
+            double y = 0.0;
+            if (layer_height(s.x, top, s.x(p, 0), s.x(p, 2), y) && s.x(p, 1) < y) ++below;
+          }
+          most_below = std::max(most_below, below);
+        }
+        double corner = -1e300, sag = 1e300;  // the top face's highest and lowest vertex
+        for (int p = 0; p < 27; ++p)
+          if (m.rest_positions(p, 1) > 0.3) {
+            corner = std::max(corner, s.x(p, 1));
+            sag = std::min(sag, s.x(p, 1));
+          }
+        std::printf("%s, edge-edge %s, run %d (order %d): at most %d cloth particles below the "
+                    "top face; its vertices from %.4f to %.4f m; smallest gap %.3e m\n",
+                    name, edges ? "on" : "off", run, static_cast<int>(order), most_below, sag,
+                    corner, worst);
+        EXPECT_EQ(most_below, 0) << name << ", run " << run;
+        EXPECT_GT(worst, -0.005) << name << ", run " << run;
       }
-      for (int p = 27; p < m.particle_count(); ++p)
-        if (std::abs(s.x(p, 0)) < 0.1 && std::abs(s.x(p, 2)) < 0.1)
-          lowest_centre = std::min(lowest_centre, s.x(p, 1));
-      // On the block as it is now (pbd's Jacobi run leaves the block 1 to 2 cm lower: softer).
-      const double top = s.x.topRows(27).col(1).maxCoeff();
-      std::printf("%s, run %d (order %d): lowest centre particle %.4f m, block top %.4f m, "
-                  "smallest gap %.3e m\n",
-                  name, run, static_cast<int>(order), lowest_centre, top, worst);
-      if (std::string(name) == "pbd" && order == ProjectionOrder::Jacobi) {
-        // A result, not a pass: pbd's Jacobi sweeps (corrections averaged over each particle's
-        // constraints) let cloth particles through the block's top face (the lowest centre
-        // particle ends 7 mm below the block's top vertex), and once through, the unsigned gap
-        // pushes them on inwards. Recorded here so that a change shows; not a requirement.
-        continue;
-      }
-      EXPECT_GT(lowest_centre, top) << name << ", run " << run;
-      EXPECT_GT(worst, -0.005) << name << ", run " << run;
-    }
+  }
 }
 
 TEST(SurfaceContact, SparseBlockStopsTheClothOnlyWithVertexTriangleContact) {
@@ -309,6 +346,158 @@ TEST(SurfaceContact, FoldedClothDoesNotPassThroughItselfWithSelfContact) {
       }
     }
   }
+}
+
+// Triangle A (particles 0-2) pinned in the plane z = 0, its top edge along x at height 0.3;
+// triangle B (3-5) in the plane x = 0, its bottom edge along z 2 cm above A's, its apex 0.5 m
+// higher, held by three distance constraints; radius 5 mm. Bodies 0 and 1, or one body.
+Model crossed_edges(bool two_bodies) {
+  Model m;
+  for (const Vec3& p : {Vec3(-0.5, 0.3, 0.0), Vec3(0.5, 0.3, 0.0), Vec3(0.5, -0.3, 0.0)})
+    add_particle(m, p, 1.0, 0.005);  // pinned below
+  for (const Vec3& p : {Vec3(0.0, 0.32, -0.5), Vec3(0.0, 0.32, 0.5), Vec3(0.0, 0.82, 0.0)})
+    add_particle(m, p, 0.1, 0.005);
+  for (int p = 0; p < 3; ++p) m.inv_mass[static_cast<size_t>(p)] = 0.0;
+  m.triangles = {{0, 1, 2}, {3, 4, 5}};
+  const std::uint16_t group = m.group_index("stretch");
+  for (const auto& [a, b] : {std::pair{3, 4}, std::pair{4, 5}, std::pair{3, 5}}) {
+    Constraint c;
+    c.kind = ConstraintKind::Distance;
+    c.particles = {a, b, -1, -1};
+    c.rest = (m.rest_positions.row(a) - m.rest_positions.row(b)).norm();
+    c.compliance = 1e-8;
+    c.group = group;
+    m.constraints.push_back(c);
+  }
+  if (two_bodies) {
+    m.particle_body = {0, 0, 0, 1, 1, 1};
+    m.surface_contact = true;
+  } else {
+    m.self_contact = true;
+  }
+  return m;
+}
+
+TEST(SurfaceContact, EdgeStopsAnEdgeOnlyWithEdgeEdgeContact) {
+  for (const char* name : kSolvers)
+    for (bool two_bodies : {true, false})
+      for (bool edges : {true, false}) {
+        Model m = crossed_edges(two_bodies);
+        m.edge_contact = edges;
+        auto solver = make_solver(options_for(name), m);
+        State s = rest_state(m);
+        double lowest = 1e300, worst = 1e300;
+        long edge_contacts = 0, triangle_contacts = 0;
+        for (int k = 0; k < 18; ++k) {  // 0.3 s: 0.44 m of free fall
+          solver->step(m, s, 1.0 / 60.0);
+          lowest = std::min(lowest, 0.5 * (s.x(3, 1) + s.x(4, 1)));
+          for (const Contact& c : find_contacts(m, s.x, s.time, 0.05)) {
+            const double C = eval_contact(m, c, s.x, s.time).C;
+            if (c.kind == ContactKind::Edge) {
+              ++edge_contacts;
+              worst = std::min(worst, C);
+            }
+            if (c.kind == ContactKind::Triangle) ++triangle_contacts;
+          }
+        }
+        std::printf("%s, %s, edge-edge %s: lowest midpoint of the falling edge %.4f m (the "
+                    "pinned edge at 0.3 m); %ld edge, %ld vertex-triangle contacts at margin 5 cm, "
+                    "smallest edge gap %.3e m\n",
+                    name, two_bodies ? "two bodies" : "self-contact", edges ? "on" : "off", lowest,
+                    edge_contacts, triangle_contacts, edge_contacts ? worst : 0.0);
+        EXPECT_EQ(triangle_contacts, 0) << name;  // no vertex comes near a triangle
+        if (edges) {
+          EXPECT_GT(edge_contacts, 0) << name << two_bodies;
+          EXPECT_GT(lowest, 0.3 + 0.01 - 0.005) << name << two_bodies;
+          EXPECT_GT(worst, -0.005) << name << two_bodies;
+        } else {
+          EXPECT_LT(lowest, 0.3 - 0.05) << name << two_bodies;  // the control: through
+        }
+      }
+}
+
+// Whether segment (p, q) passes through triangle (a, b, c) (Moller and Trumbore 1997).
+bool segment_crosses_triangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 d = q - p, e1 = b - a, e2 = c - a;
+  const Vec3 h = d.cross(e2);
+  const double det = e1.dot(h);
+  if (std::abs(det) < 1e-300) return false;
+  const double f = 1.0 / det;
+  const Vec3 s = p - a;
+  const double u = f * s.dot(h);
+  if (u < 0.0 || u > 1.0) return false;
+  const Vec3 qv = s.cross(e1);
+  const double v = f * d.dot(qv);
+  if (v < 0.0 || u + v > 1.0) return false;
+  const double t = f * e2.dot(qv);
+  return t >= 0.0 && t <= 1.0;
+}
+
+// The number of (edge, triangle) pairs of the model's surface, sharing no vertex, where the edge
+// passes through the triangle: the surface's self-intersections.
+int surface_crossings(const Model& m, const Points& x) {
+  const TriangleBvh bvh(x, m.triangles);
+  int crossings = 0;
+  for (const auto& e : surface_edges(m)) {
+    const Vec3 p = x.row(e[0]).transpose(), q = x.row(e[1]).transpose();
+    TriangleBvh::Box box;
+    box.grow(p);
+    box.grow(q);
+    bvh.overlapping(box, [&](int t) {
+      const auto& tri = m.triangles[static_cast<size_t>(t)];
+      for (int v : tri)
+        if (v == e[0] || v == e[1]) return;
+      if (segment_crosses_triangle(p, q, x.row(tri[0]).transpose(), x.row(tri[1]).transpose(),
+                                   x.row(tri[2]).transpose()))
+        ++crossings;
+    });
+  }
+  return crossings;
+}
+
+TEST(SurfaceContact, ClothOnPoleDoesNotCrossItselfWithSelfContact) {
+  {  // The counter on a closed form: two crossed triangles, one edge of each through the other.
+    Model m;
+    for (const Vec3& p : {Vec3(-1, 0, -1), Vec3(1, 0, -1), Vec3(0, 0, 1), Vec3(0, -1, 0),
+                          Vec3(0, 1, 0), Vec3(0, 1, 0.5)})
+      add_particle(m, p, 1.0, 0.01);
+    m.triangles = {{0, 1, 2}, {3, 4, 5}};
+    // Triangle 3-4-5 pierces 0-1-2: its edges 3-4 and 3-5 pass through it.
+    EXPECT_EQ(surface_crossings(m, m.rest_positions), 2);
+    m.rest_positions(3, 1) = 0.5;  // lifted clear
+    EXPECT_EQ(surface_crossings(m, m.rest_positions), 0);
+  }
+  for (const char* name : kSolvers)
+    for (bool self : {true, false}) {
+      const config::Config cfg = config::load("cloth_on_pole", {{"solver.name", name}});
+      Scene sc = config::build_scene(cfg);
+      Model& m = sc.model;
+      ASSERT_TRUE(m.self_contact);
+      m.self_contact = self;
+      auto solver = make_solver(config::solver_options(cfg), m);
+      const double dt = config::run_options(cfg).dt;
+      State s = sc.initial;
+      int most = 0, steps_crossed = 0;
+      for (int k = 0; k < 90; ++k) {  // 1.5 s
+        solver->step(m, s, dt);
+        const int crossings = surface_crossings(m, s.x);
+        most = std::max(most, crossings);
+        steps_crossed += crossings > 0;
+      }
+      double lowest = s.x.col(1).minCoeff(), highest = s.x.col(1).maxCoeff();
+      std::printf("%s, self-contact %s: at most %d crossings (cloth edges through cloth "
+                  "triangles) at a step, %d steps of 90 with any; cloth from %.3f to %.3f m\n",
+                  name, self ? "on" : "off", most, steps_crossed, lowest, highest);
+      // Under pbd with self-contact it hangs on the pole; under xpbd (either way) and pbd
+      // without it, it slips off within 1.5 s (recorded by the print, not yet explained: the
+      // pole is a mesh collider, met by the cloth's particles only, not its edges).
+      if (std::string(name) == "pbd" && self) EXPECT_GT(highest, 1.0) << name;
+      if (self) {
+        EXPECT_EQ(most, 0) << name;
+      } else {
+        EXPECT_GT(most, 10) << name;  // the control: the halves pass through each other
+      }
+    }
 }
 
 TEST(SurfaceContact, StackOfSoftCubesDoesNotInterpenetrate) {
