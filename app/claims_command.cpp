@@ -29,7 +29,7 @@ namespace {
 // Writes `text` unless the file already holds it (so that a rerun that reused every run file
 // leaves the report's time stamps alone and the figures are not redrawn).
 void write_text(const fs::path& path, const std::string& text) {
-  fs::create_directories(path.parent_path());
+  if (path.has_parent_path()) fs::create_directories(path.parent_path());
   {
     std::ifstream in(path, std::ios::binary);
     if (in) {

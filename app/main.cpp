@@ -555,6 +555,9 @@ int main(int argc, char** argv) {
   regress_sub->add_flag("--repeat", regress_cmd.repeat, "Run every case twice and compare the bits (determinism)");
   regress_sub->add_option("--out", regress_cmd.out, "Output folder (default results/regress/<tier>)");
   regress_sub->add_option("--baselines", regress_cmd.baselines, "Baselines file (default regress/baselines_<tier>.toml)");
+  regress_sub->add_option("--registry", regress_cmd.registry,
+                          "Registry of metrics and cases (default regress/cases.toml; docs/regress.md has its form)")
+      ->check(CLI::ExistingFile);
   regress_sub->add_flag("--force", regress_cmd.force, "Run again even when current run files exist");
   regress_sub->add_flag("--no-plot", regress_no_plot, "Do not draw regress.png");
   regress_sub->add_option("--jobs,-j", regress_cmd.jobs,

@@ -608,6 +608,39 @@ rule = "err < 0.1"
         self.assertEqual(r.returncode, 2)
         self.assertIn("no case named 'no_such_case'", r.stderr)
 
+    def test_regress_shows_the_warnings_of_its_runs(self):
+        # A registry of one's own (--registry) with a case whose run warns: the inverted tets of
+        # failure 3.3 lose volume (metrics/health.hpp's volume_lost). The console and regress.md
+        # list the warning after the verdicts; the verdicts stand (0 worse against its own baseline).
+        registry = self.write("cases.toml", "\n".join([
+            "[[metric]]", 'name = "volume_drift_final"', 'value = "abs(final(volume_drift))"',
+            'doc = "|relative change of the tet volume| at the end"', 'worse = "higher"', "rel = 1e-3", "abs = 1e-12",
+            "", "[[case]]", 'name = "inverted"', 'scenario = "failures/inverted_tets"',
+            'set = { "solver.name" = "pbd" }', "quick = true", ""]))
+        # Paths relative to the working folder, the baselines' without a folder of its own.
+        out = os.path.join(self.dir, "w")
+        args = ["regress", "--registry", "cases.toml", "--baselines", "base.toml", "--out", "w", "--no-plot"]
+        r = pbdbench(*args, "--update", cwd=self.dir)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("1 cases measured; baselines written", r.stdout)
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "base.toml")))
+        r = pbdbench(*args, cwd=self.dir)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("0 worse", r.stdout)
+        lines = r.stdout.splitlines()
+        heading = lines.index("warnings of the runs:")
+        warned = [l for l in lines[heading + 1:] if l.startswith("  inverted: WARNING ")]
+        self.assertTrue(warned, r.stdout)
+        self.assertTrue(any("volume" in l for l in warned), r.stdout)
+        with open(os.path.join(out, "regress.md")) as f:
+            md = f.read()
+        self.assertIn("## Warnings of the runs", md)
+        self.assertIn("inverted: WARNING", md)
+        # A registry that is not there is refused (exit 2).
+        r = pbdbench("regress", "--registry", os.path.join(self.dir, "none.toml"), "--out", out)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertIn("none.toml", r.stderr)
+
 
 if __name__ == "__main__":
     unittest.main()
