@@ -39,6 +39,12 @@ struct Pack {
   }
   T operator[](int i) const { return v[i]; }
   void set(int i, T s) { v[i] = s; }
+  // kWidth consecutive values at a (any alignment of T). Typed accesses, not memcpy: the compiler
+  // knows a store of T values leaves the index arrays and pointers of a kernel as they were
+  // (a memcpy store may alias anything, and made it reload them after every store).
+  typedef T U __attribute__((vector_size(Bytes), aligned(sizeof(T))));
+  static Pack load(const T* a) { return of(*reinterpret_cast<const U*>(a)); }
+  void store(T* a) const { *reinterpret_cast<U*>(a) = v; }
 };
 
 // The lanes of the registers every x86-64 has: 2 doubles or 4 floats.
@@ -83,9 +89,27 @@ PBDBENCH_INLINE Pack<T, B> lane_abs(Pack<T, B> a) {
   __builtin_memcpy(&out.v, &bits, sizeof bits);
   return out;
 }
-// The lanes of a mask as bits (lane i at bit i).
+// The lanes of a mask as bits (lane i at bit i). A mask lane is all bits or none, so its sign
+// bit says which: one movemask (or, in AVX-512, one compare into a mask register) instead of a
+// lane-by-lane extraction.
 template <class T, int B>
 PBDBENCH_INLINE int lane_bits(PackMask<T, B> m) {
+  if constexpr (B == 16) {
+    if constexpr (sizeof(T) == 8) return _mm_movemask_pd(reinterpret_cast<__m128d>(m.v));
+    else return _mm_movemask_ps(reinterpret_cast<__m128>(m.v));
+  }
+#ifdef __AVX__
+  if constexpr (B == 32) {
+    if constexpr (sizeof(T) == 8) return _mm256_movemask_pd(reinterpret_cast<__m256d>(m.v));
+    else return _mm256_movemask_ps(reinterpret_cast<__m256>(m.v));
+  }
+#endif
+#ifdef __AVX512F__
+  if constexpr (B == 64) {
+    if constexpr (sizeof(T) == 8) return _mm512_cmpneq_epi64_mask(reinterpret_cast<__m512i>(m.v), _mm512_setzero_si512());
+    else return _mm512_cmpneq_epi32_mask(reinterpret_cast<__m512i>(m.v), _mm512_setzero_si512());
+  }
+#endif
   int bits = 0;
   for (int i = 0; i < Pack<T, B>::kWidth; ++i) bits |= (m.v[i] != 0 ? 1 : 0) << i;
   return bits;

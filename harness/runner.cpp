@@ -9,6 +9,7 @@
 #include <string>
 
 #include <fmt/format.h>
+#include <time.h>
 
 #include "core/cancel.hpp"
 #include "harness/plan.hpp"
@@ -26,6 +27,13 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// The CPU time of the calling thread, s.
+double thread_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
 }
 
 // The first quantity of a sample that must be finite and is not ("total energy = inf J"), or "".
@@ -74,6 +82,7 @@ void check_solver_names(const config::Config& config) {
 RunOutcome run_config(const config::Config& config, const std::filesystem::path& out,
                       const RunControl& control) {
   const auto t_start = Clock::now();
+  const double cpu_start = thread_cpu_seconds();
   // Everything that can be refused is refused before the file is created.
   Scene scene = config::build_scene(config);
   const SolverOptions solver_opts = config::solver_options(config);
@@ -152,6 +161,8 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   if (plan.seconds > 60.0 && control.notice) control.notice("planned: " + describe_plan(plan));
 
   RunOutcome outcome;
+  outcome.setup_time = seconds_since(t_start);
+  outcome.setup_cpu_time = thread_cpu_seconds() - cpu_start;
   outcome.steps_planned = run.steps();
   const long frame_every = run.every_frame();
 
@@ -207,7 +218,9 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
         blend_rest_values(model, relax_start,
                           static_cast<double>(k) / static_cast<double>(relax_frames), working);
       const auto t0 = Clock::now();
+      const double cpu0 = thread_cpu_seconds();
       const StepReport report = solver->step(relaxing ? working : model, state, run.dt);
+      outcome.solver_cpu_time += thread_cpu_seconds() - cpu0;
       const double wall = seconds_since(t0);
       outcome.solver_time += wall;
       sample = measure(model, state, baseline);

@@ -33,6 +33,16 @@ struct RunOutcome {
   long exploded_step = -1;  // the step at which the explosion was detected, or -1
   double wall_time = 0.0;   // s, the whole run including metrics and output
   double solver_time = 0.0; // s, inside solver.step() only
+  // s, before the run file is created: the scene built, the solver (and shadow) constructed
+  // (colouring, compiled projections), the initial state measured and the run planned. The rest
+  // of wall_time outside solver_time is the harness's logging: metrics, frames and HDF5
+  // (the file created, rows and frames appended, published, finished).
+  double setup_time = 0.0;
+  // The same in the CPU time of the run's thread (s): what other processes on a shared machine do
+  // not inflate. solver_cpu_time misses the time of the solver's own worker threads
+  // (solver.threads > 1); the frame worker's is in no field (the process's CPU time has it).
+  double solver_cpu_time = 0.0;
+  double setup_cpu_time = 0.0;
   Sample final_sample;      // metrics of the last state
   // What a reader would call a failure though no limit was crossed (metrics/health.hpp), one
   // line each; also in the run file's "warnings" attribute.

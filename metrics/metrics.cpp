@@ -60,6 +60,19 @@ double constraint_error(const Model& model, const Constraint& c, const Points& x
 
 namespace {
 
+// The model constraints that touch a particle with inv_mass 0, in model order.
+std::vector<int> constraints_touching_supports(const Model& model) {
+  std::vector<int> out;
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
+    const Constraint& c = model.constraints[j];
+    bool touches = false;
+    for (int k = 0; k < arity(c.kind); ++k)
+      touches = touches || model.inv_mass[static_cast<size_t>(c.particles[static_cast<size_t>(k)])] == 0.0;
+    if (touches) out.push_back(static_cast<int>(j));
+  }
+  return out;
+}
+
 double relative_drift(double now, double start) {
   return start != 0.0 ? (now - start) / std::abs(start) : kNaN;
 }
@@ -71,6 +84,8 @@ MetricsBaseline measure_baseline(const Model& model, const State& initial) {
   b.tet_volume = model.tets.empty() ? kNaN : total_tet_volume(model, initial.x);
   b.surface_volume = model.surface_closed ? enclosed_volume(model, initial.x) : kNaN;
   b.extent = max_distance_from_centroid(initial.x);
+  b.support_constraints = constraints_touching_supports(model);
+  b.supports_listed = true;
   return b;
 }
 
@@ -83,27 +98,41 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   // Constraint error, overall and per group (constraint_error above: the FEM kinds by their
   // deviation from the rest shape).
   s.groups.assign(model.group_names.size(), GroupError{});
-  std::vector<double> values;  // C of every constraint (core/constraint_functions.hpp)
+  // C of every constraint (core/constraint_functions.hpp), in a buffer kept by the thread: a
+  // fresh one of a large model's size is a fresh mapping whose pages fault in at every sample.
+  thread_local std::vector<double> values;
   constraint_values(model, x, values);
-  double sum_sq = 0.0;
-  size_t measured = 0;
-  for (size_t j = 0; j < model.constraints.size(); ++j) {
-    const Constraint& c = model.constraints[j];
-    const double err = is_fem_kind(c.kind) ? constraint_error(model, c, x) : normalized_error(c, values[j]);
-    ++measured;
-    GroupError& g = s.groups[c.group];
-    g.max = std::max(g.max, err);
-    g.rms += err * err;
-    ++g.count;
-    s.constraint_error_max = std::max(s.constraint_error_max, err);
-    sum_sq += err * err;
-    if (std::isnan(err)) {  // std::max(a, NaN) returns a: keep the NaN visible
-      s.constraint_error_max = kNaN;
-      g.max = kNaN;
+  // One pass, the sums in registers (in memory they chain every constraint through a store and
+  // a load): the same operations in the same order as one constraint at a time. The group's
+  // sums are carried over a run of constraints of one group and stored when the group changes.
+  // The elastic energy of the compliant constraints (below) is summed in the same pass.
+  double sum_sq = 0.0, error_max = 0.0, elastic = 0.0;
+  const size_t m = model.constraints.size();
+  for (size_t j = 0; j < m;) {
+    const int group = model.constraints[j].group;
+    GroupError g = s.groups[static_cast<size_t>(group)];
+    for (; j < m && model.constraints[j].group == group; ++j) {
+      const Constraint& c = model.constraints[j];
+      const bool fem = is_fem_kind(c.kind);
+      const double err = fem ? constraint_error(model, c, x) : normalized_error(c, values[j]);
+      g.max = std::max(g.max, err);
+      g.rms += err * err;
+      ++g.count;
+      error_max = std::max(error_max, err);
+      sum_sq += err * err;
+      if (std::isnan(err)) {  // std::max(a, NaN) returns a: keep the NaN visible
+        error_max = kNaN;
+        g.max = kNaN;
+      }
+      // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it
+      // below (adding both would count each element twice).
+      if (c.compliance > 0.0 && !fem) elastic += values[j] * values[j] / (2.0 * c.compliance);
     }
+    s.groups[static_cast<size_t>(group)] = g;
   }
+  s.constraint_error_max = error_max;
   for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
-  s.constraint_error_rms = measured == 0 ? 0.0 : std::sqrt(sum_sq / measured);
+  s.constraint_error_rms = m == 0 ? 0.0 : std::sqrt(sum_sq / static_cast<double>(m));
 
   // Volume.
   if (model.tets.empty()) {
@@ -132,15 +161,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     s.linear_momentum += m * vi;
     s.angular_momentum += m * xi.cross(vi);
   }
-  for (size_t j = 0; j < model.constraints.size(); ++j) {
-    // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it below
-    // (adding both would count each element twice).
-    const Constraint& c = model.constraints[j];
-    if (c.compliance > 0.0 && !is_fem_kind(c.kind)) {
-      const double C = values[j];
-      s.elastic_energy += C * C / (2.0 * c.compliance);
-    }
-  }
+  s.elastic_energy = elastic;  // the compliant constraints', summed above
   for (const FemElement& e : model.elements) s.elastic_energy += fem::element_energy(e, x);
   if (!baseline.elastic_defined) s.elastic_energy = kNaN;
   s.total_energy = s.kinetic_energy + s.potential_energy + s.elastic_energy;
@@ -178,7 +199,9 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
 
   // Observables of the scene.
   s.tip_displacement = tip_displacement(model, state);
-  s.support_force = support_force(model, state);
+  s.support_force = baseline.supports_listed
+                       ? support_force(model, state, baseline.support_constraints)
+                       : support_force(model, state);
   s.pendulum_angle = pendulum_angle(model, state);
   return s;
 }
@@ -267,6 +290,10 @@ Vec3 tip_displacement(const Model& model, const State& state) {
 }
 
 Vec3 support_force(const Model& model, const State& state) {
+  return support_force(model, state, constraints_touching_supports(model));
+}
+
+Vec3 support_force(const Model& model, const State& state, const std::vector<int>& touching) {
   const Vec3 nan = Vec3::Constant(kNaN);
   auto support = [&](int i) { return model.inv_mass[static_cast<size_t>(i)] == 0.0; };
   for (const FemElement& e : model.elements)
@@ -278,11 +305,9 @@ Vec3 support_force(const Model& model, const State& state) {
   if (!any_support) return Vec3::Zero();
   if (state.step == 0) return nan;  // no step has computed the multipliers yet
   Vec3 on_supports = Vec3::Zero();  // sum of the constraint forces on the supports
-  for (size_t j = 0; j < model.constraints.size(); ++j) {
+  for (const int jj : touching) {
+    const size_t j = static_cast<size_t>(jj);
     const Constraint& c = model.constraints[j];
-    bool touches = false;
-    for (int k = 0; k < arity(c.kind); ++k) touches = touches || support(c.particles[static_cast<size_t>(k)]);
-    if (!touches) continue;
     const double lambda = state.lambda[j];
     if (std::isnan(lambda)) return nan;
     if (lambda == 0.0) continue;

@@ -21,6 +21,10 @@ struct MetricsBaseline {
   // elastic_energy_defined: not for pbd with an explicit k, nor for pbd-seed's k). Set by the
   // runner; measure_baseline leaves it true.
   bool elastic_defined = true;
+  // The model constraints that touch a particle with inv_mass 0 (support_force's sum), listed
+  // once by measure_baseline; when not listed, measure finds them in every sample.
+  std::vector<int> support_constraints;
+  bool supports_listed = false;
 };
 
 MetricsBaseline measure_baseline(const Model& model, const State& initial);
@@ -113,6 +117,9 @@ Vec3 tip_displacement(const Model& model, const State& state);
 // an FEM element touches a support (its forces are not in lambda). Contacts and colliders are
 // not supports here.
 Vec3 support_force(const Model& model, const State& state);
+// The same over the given constraints, those of the model that touch a support, in model order
+// (MetricsBaseline::support_constraints).
+Vec3 support_force(const Model& model, const State& state, const std::vector<int>& touching);
 
 // The signed angle (rad) of the pendulum's bob (Model::observables.bob) about the pivot, from
 // the gravity direction g^: with d = x_bob - pivot and e = the unit vector of +x with its

@@ -46,7 +46,17 @@ FrameCompressor::~FrameCompressor() {
 }
 
 long long FrameCompressor::submit(const void* data, size_t size) {
-  std::vector<unsigned char> copy(static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
+  // The copy goes into a buffer the worker has finished with, when there is one: a fresh
+  // allocation of a frame's size is a fresh mapping whose pages fault in on every frame.
+  std::vector<unsigned char> copy;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!spare_.empty()) {
+      copy = std::move(spare_.back());
+      spare_.pop_back();
+    }
+  }
+  copy.assign(static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
   long long index;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -96,6 +106,7 @@ void FrameCompressor::work() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       finished_.push_back(std::move(c));  // one worker: finished in submission order
+      if (!job.second.empty() && spare_.size() < kSpareBuffers) spare_.push_back(std::move(job.second));
     }
     done_.notify_all();
   }

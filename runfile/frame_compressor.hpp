@@ -55,6 +55,8 @@ class FrameCompressor {
   std::condition_variable wake_worker_, done_;
   std::deque<std::pair<long long, std::vector<unsigned char>>> todo_;
   std::deque<CompressedChunk> finished_;  // in index order
+  static constexpr size_t kSpareBuffers = 4;
+  std::vector<std::vector<unsigned char>> spare_;  // input buffers the worker is done with
   long long submitted_ = 0, taken_ = 0;
   bool stop_ = false;
   std::thread worker_;

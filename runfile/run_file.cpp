@@ -484,32 +484,41 @@ struct RunFileWriter::Impl {
     dirty = true;
   }
 
-  // Stores the chunks the compressor has finished (with `wait`, every one submitted).
+  // Stores the chunks the compressor has finished (with `wait`, every one submitted). The whole
+  // frames among them (positions, velocities and time reach the image together) go in at once:
+  // each dataset is extended once and the times appended in one write.
   void store_frames(bool wait) {
     if (!compressor) return;
     const hsize_t n = static_cast<hsize_t>(particles);
-    auto store = [&](H5::DataSet& ds, const CompressedChunk& c) {
-      const hsize_t row = static_cast<hsize_t>(c.index / 2);
-      const hsize_t size[3] = {row + 1, n, 3};
-      ds.extend(size);
-      const hsize_t offset[3] = {row, 0, 0};
-      // Filter mask: 0 = the dataset's deflate filter was applied; bit 0 set = it was skipped.
-      if (H5Dwrite_chunk(ds.getId(), H5P_DEFAULT, c.deflated ? 0u : 1u, offset, c.bytes.size(), c.bytes.data()) < 0)
-        fail(path, "cannot write a frame's chunk");
-    };
-    for (CompressedChunk& c : compressor->take(wait)) {
+    std::vector<CompressedChunk> chunks = compressor->take(wait);
+    std::vector<std::pair<CompressedChunk, CompressedChunk>> whole;  // (positions, velocities)
+    for (CompressedChunk& c : chunks) {
       if (c.index % 2 == 0) {  // positions: held until the frame's velocities are done too
         held_positions = std::move(c);
         continue;
       }
-      // A whole frame: positions, velocities and time reach the image together.
-      store(*frame_positions, *held_positions);
-      store(*frame_velocities, c);
+      whole.emplace_back(std::move(*held_positions), std::move(c));
       held_positions.reset();
-      append_rows(*frame_time, frames, 1, {}, &frame_times_queued.front(), H5::PredType::NATIVE_DOUBLE);
-      frame_times_queued.pop_front();
-      dirty = true;
     }
+    if (whole.empty()) return;
+    const hsize_t size[3] = {frames + whole.size(), n, 3};
+    frame_positions->extend(size);
+    frame_velocities->extend(size);
+    auto store = [&](H5::DataSet& ds, const CompressedChunk& c) {
+      const hsize_t offset[3] = {static_cast<hsize_t>(c.index / 2), 0, 0};
+      // Filter mask: 0 = the dataset's deflate filter was applied; bit 0 set = it was skipped.
+      if (H5Dwrite_chunk(ds.getId(), H5P_DEFAULT, c.deflated ? 0u : 1u, offset, c.bytes.size(), c.bytes.data()) < 0)
+        fail(path, "cannot write a frame's chunk");
+    };
+    std::vector<double> times;
+    for (const auto& [positions, velocities] : whole) {
+      store(*frame_positions, positions);
+      store(*frame_velocities, velocities);
+      times.push_back(frame_times_queued.front());
+      frame_times_queued.pop_front();
+    }
+    append_rows(*frame_time, frames, times.size(), {}, times.data(), H5::PredType::NATIVE_DOUBLE);
+    dirty = true;
   }
 
   double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
@@ -747,8 +756,10 @@ void RunFileWriter::append_frame(double time, const Points& x, const Points* v) 
                                 std::to_string(x.rows()) + " particles, the model has " +
                                 std::to_string(w.particles));
   try {
-    w.write_pending();  // rows up to the frame reach the image no later than the frame
+    // Rows and frames reach the published image together: publish() writes the pending rows
+    // before it stores the finished frames, so a frame is never published ahead of its row.
     if (w.particles == 0) {
+      w.write_pending();  // rows up to the frame reach the image no later than the frame
       append_rows(*w.frame_time, w.frames, 1, {}, &time, H5::PredType::NATIVE_DOUBLE);
     } else {
       // Points are row-major (n x 3), the chunk's layout; stored little-endian as on this machine.
@@ -763,7 +774,10 @@ void RunFileWriter::append_frame(double time, const Points& x, const Points* v) 
         w.compressor->submit(nan.data(), bytes);
       }
       w.frame_times_queued.push_back(time);
-      w.store_frames(w.compressor->outstanding() > 2 * Impl::kMaxFramesQueued);
+      // Stored in batches of up to kMaxFramesQueued frames (HDF5's per-call costs once per
+      // batch); past that the writer waits for the worker.
+      if (w.compressor->outstanding() >= 2 * Impl::kMaxFramesQueued)
+        w.store_frames(w.compressor->outstanding() > 2 * Impl::kMaxFramesQueued);
     }
     w.dirty = true;
     w.maybe_publish();

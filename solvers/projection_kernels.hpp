@@ -145,7 +145,7 @@ struct Lanes {
     if constexpr (Partial) {
       for (int k = 0; k < kWidth; ++k) out.set(k, a[lane(k)]);
     } else {
-      __builtin_memcpy(&out.v, a, sizeof out.v);
+      out = L::load(a);
     }
     return out;
   }
@@ -153,7 +153,7 @@ struct Lanes {
     if constexpr (Partial) {
       for (int k = 0; k < n; ++k) a[k] = v[k];
     } else {
-      __builtin_memcpy(a, &v.v, sizeof v.v);
+      v.store(a);
     }
   }
   // Particles are gathered one value at a time: moving each as one 4-vector and transposing with
@@ -185,9 +185,7 @@ struct Lanes {
   }
   // The active lanes whose bit is clear in `valid`.
   PBDBENCH_INLINE int skipped(int valid) const {
-    int set = 0;
-    for (int k = 0; k < kWidth; ++k) set += (valid >> k) & 1;
-    return (Partial ? n : kWidth) - set;
+    return (Partial ? n : kWidth) - __builtin_popcount(static_cast<unsigned>(valid));
   }
 };
 

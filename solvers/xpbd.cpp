@@ -93,10 +93,12 @@ class XpbdSolver final : public Solver {
       round_to_float(x);
       round_to_float(v);
     }
-    coefficients_.resize(model.constraints.size());
-    for (size_t j = 0; j < model.constraints.size(); ++j)
-      coefficients_[j] =
-          xpbd_coefficients(model.constraints[j].compliance, model.constraints[j].damping, h);
+    if (!compiled_) {  // the compiled sweeps keep their own, per substep length
+      coefficients_.resize(model.constraints.size());
+      for (size_t j = 0; j < model.constraints.size(); ++j)
+        coefficients_[j] =
+            xpbd_coefficients(model.constraints[j].compliance, model.constraints[j].damping, h);
+    }
     state.lambda.assign(model.constraints.size(), 0.0);
     std::vector<double>& lambda = state.lambda;
 
@@ -244,7 +246,7 @@ class XpbdSolver final : public Solver {
   int particles_;
   int constraints_;
   Ordering ordering_;
-  std::vector<XpbdCoefficients> coefficients_;  // (m) for the current h
+  std::vector<XpbdCoefficients> coefficients_;  // (m) for the current h (per-item path only)
   // Strain kinds: slot of constraint j (-1 for the other kinds), and per slot the compliance
   // matrix (fem::strain_compliance, 1/(Pa m^3)) and the substep's multiplier vector (units of C kg).
   std::vector<int> strain_slot_;           // (m)

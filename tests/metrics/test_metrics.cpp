@@ -10,6 +10,7 @@
 #include <numbers>
 #include <string>
 
+#include "core/constraint_functions.hpp"
 #include "core/fem.hpp"
 
 namespace pbdbench {
@@ -589,6 +590,70 @@ TEST(metrics, SupportForceFollowsTheGradients) {
   EXPECT_TRUE(Near(f.x(), -5.0 + 0.5));
   EXPECT_TRUE(Near(f.y(), 0.5));
   EXPECT_TRUE(Near(f.z(), 0.5));
+}
+
+// measure() sums the errors, the group sums and the elastic energy in one pass over runs of one
+// group, and takes the supports' constraints from the baseline: the same bits as one constraint
+// at a time into each group, with the supports found again (a baseline that does not list them).
+TEST(metrics, OnePassSumsAndListedSupportsGiveTheSameBits) {
+  Model m = particles({{0, 0, 0}, {2.1, 0.2, 0}, {3, 0, 0}, {4.3, 0, 0.1}, {3, 1.2, 0}, {3, 0, 0.9}},
+                      {0, 1, 0, 1, 1, 1});
+  const std::uint16_t stretch = m.group_index("stretch"), volume = m.group_index("volume");
+  auto link = [&](int a, int b, double rest, double compliance) {
+    Constraint c;
+    c.particles = {a, b, -1, -1};
+    c.rest = rest;
+    c.compliance = compliance;
+    c.group = stretch;
+    return c;
+  };
+  Constraint tet;
+  tet.kind = ConstraintKind::Volume;
+  tet.particles = {2, 3, 4, 5};
+  tet.rest = 1.0 / 6.0;
+  tet.compliance = 1e-3;
+  tet.group = volume;
+  // The groups interleave (stretch, volume, stretch, stretch): three runs.
+  m.constraints = {link(0, 1, 1.0, 0.01), tet, link(0, 2, 2.5, 0.0), link(1, 3, 2.2, 0.3)};
+  State s = rest_state(m);
+  s.x = m.rest_positions * 1.1;
+  s.step = 3;
+  s.lambda = {-5.0, 3.0, 7.0, 0.5};
+  const MetricsBaseline listed = measure_baseline(m, rest_state(m));
+  ASSERT_TRUE(listed.supports_listed);
+  EXPECT_EQ(listed.support_constraints, (std::vector<int>{0, 1, 2}));
+  MetricsBaseline unlisted = listed;
+  unlisted.support_constraints.clear();
+  unlisted.supports_listed = false;
+  const Sample a = measure(m, s, listed), b = measure(m, s, unlisted);
+  // One constraint at a time, as the sums were written before.
+  std::vector<GroupError> groups(m.group_names.size());
+  double max = 0.0, sum_sq = 0.0, elastic = 0.0;
+  for (const Constraint& c : m.constraints) {
+    const double C = eval_constraint(c, s.x).C, err = normalized_error(c, C);
+    GroupError& g = groups[c.group];
+    g.max = std::max(g.max, err);
+    g.rms += err * err;
+    ++g.count;
+    max = std::max(max, err);
+    sum_sq += err * err;
+    if (c.compliance > 0.0) elastic += C * C / (2.0 * c.compliance);
+  }
+  for (GroupError& g : groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
+  for (const Sample* x : {&a, &b}) {
+    EXPECT_EQ(x->constraint_error_max, max);
+    EXPECT_EQ(x->constraint_error_rms, std::sqrt(sum_sq / 4.0));
+    EXPECT_EQ(x->elastic_energy, elastic);
+    ASSERT_EQ(x->groups.size(), groups.size());
+    for (size_t k = 0; k < groups.size(); ++k) {
+      EXPECT_EQ(x->groups[k].max, groups[k].max);
+      EXPECT_EQ(x->groups[k].rms, groups[k].rms);
+      EXPECT_EQ(x->groups[k].count, groups[k].count);
+    }
+  }
+  EXPECT_EQ(a.support_force, b.support_force);
+  EXPECT_EQ(a.support_force, support_force(m, s));
+  EXPECT_TRUE(a.support_force.allFinite());
 }
 
 TEST(metrics, SupportForceIsNaNWithoutMultipliersAndZeroWithoutSupports) {
