@@ -38,7 +38,8 @@ SolverOptions be_options(int substeps = 1) {
 Vec3 barrier_force(const Model& m, const Points& x, double kappa, double d_hat) {
   Vec3 f = Vec3::Zero();
   for (const Contact& c : find_contacts(m, x, 0.0, d_hat)) {
-    if (c.kind == ContactKind::Triangle) continue;  // the surface pairs: SurfaceBarrier
+    // The surface contacts (vertex-triangle, edge-edge) are the surface pairs: SurfaceBarrier.
+    if (c.kind == ContactKind::Triangle || c.kind == ContactKind::Edge) continue;
     const barrier::Gap g = barrier::gap(m, c, x, 0.0);
     f += -kappa * barrier::first(g.d, d_hat) * g.grad.head<3>();
   }
