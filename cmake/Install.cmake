@@ -87,4 +87,5 @@ write_basic_package_version_file(${CMAKE_CURRENT_BINARY_DIR}/pbdbenchConfigVersi
                                  COMPATIBILITY SameMinorVersion)
 install(FILES ${CMAKE_CURRENT_BINARY_DIR}/pbdbenchConfig.cmake ${CMAKE_CURRENT_BINARY_DIR}/pbdbenchConfigVersion.cmake
               cmake/SuiteSparse.cmake
+              cmake/Libdeflate.cmake
         DESTINATION ${PBDBENCH_CMAKE_DIR})

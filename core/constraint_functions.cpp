@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/constraint_stencils.hpp"
+#include "core/constraint_values_packed.hpp"
 #include "core/simd.hpp"
 #include "core/fem.hpp"
 
@@ -90,67 +91,36 @@ ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Po
   return ev;
 }
 
+namespace detail {
+void constraint_values_avx2(const Model& model, const Points& x, const double* X, const Constraint* cs,
+                            size_t m, double* C);
+void constraint_values_avx512(const Model& model, const Points& x, const double* X,
+                              const Constraint* cs, size_t m, double* C);
+}  // namespace detail
+
 void constraint_values(const Model& model, const Points& x, std::vector<double>& C) {
-  using L = Pack<double, 16>;
+  // The widest packs the processor has (core/constraint_values_packed.hpp): the same bits at
+  // every width.
+  enum class Width { Sse2, Avx2, Avx512 };
+  static const Width width = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("fma") ? Width::Avx512
+                             : __builtin_cpu_supports("avx2")  ? Width::Avx2
+                                                               : Width::Sse2;
   const size_t m = model.constraints.size();
   C.resize(m);
-  const auto lanes = [&](const Constraint& a, const Constraint& b, int i) {
-    V3<L> v;
-    const auto ra = x.row(a.particles[static_cast<size_t>(i)]);
-    const auto rb = x.row(b.particles[static_cast<size_t>(i)]);
-    v.x.set(0, ra(0)), v.x.set(1, rb(0));
-    v.y.set(0, ra(1)), v.y.set(1, rb(1));
-    v.z.set(0, ra(2)), v.z.set(1, rb(2));
-    return v;
-  };
-  size_t j = 0;
-  while (j < m) {
-    const Constraint& a = model.constraints[j];
-    if (j + 1 < m && model.constraints[j + 1].kind == a.kind && !is_fem_kind(a.kind)) {
-      const Constraint& b = model.constraints[j + 1];
-      L rest;
-      rest.set(0, a.rest);
-      rest.set(1, b.rest);
-      L value(0.0);
-      switch (a.kind) {
-        case ConstraintKind::Distance:
-          value = distance_stencil(lanes(a, b, 0), lanes(a, b, 1), rest).C;
-          break;
-        case ConstraintKind::Volume:
-          value = volume_stencil(lanes(a, b, 0), lanes(a, b, 1), lanes(a, b, 2), lanes(a, b, 3), rest).C;
-          break;
-        case ConstraintKind::Bending:
-          value = bending_stencil(lanes(a, b, 0), lanes(a, b, 1), lanes(a, b, 2), lanes(a, b, 3), rest).C;
-          break;
-        case ConstraintKind::FemDeviatoric:
-        case ConstraintKind::FemHydrostatic:
-        case ConstraintKind::FemStrainTriangle:
-        case ConstraintKind::FemStrainTet:
-          break;  // not paired (is_fem_kind)
-      }
-      C[j] = value[0];
-      C[j + 1] = value[1];
-      j += 2;
-    } else {
-      C[j] = eval_constraint(model, a, x).C;
-      j += 1;
-    }
+  const Constraint* cs = model.constraints.data();
+  switch (width) {
+    case Width::Avx512: detail::constraint_values_avx512(model, x, x.data(), cs, m, C.data()); return;
+    case Width::Avx2: detail::constraint_values_avx2(model, x, x.data(), cs, m, C.data()); return;
+    case Width::Sse2: break;
   }
+  detail::constraint_values_packed<Pack<double, 16>>(model, x, x.data(), cs, m, C.data());
 }
 
-double normalized_error(const Constraint& c, double C) {
-  switch (c.kind) {
-    case ConstraintKind::Distance:
-    case ConstraintKind::Volume:
-      return std::abs(c.rest) > 0.0 ? std::abs(C) / std::abs(c.rest) : std::abs(C);
-    case ConstraintKind::Bending:
-    case ConstraintKind::FemDeviatoric:
-    case ConstraintKind::FemHydrostatic:
-    case ConstraintKind::FemStrainTriangle:
-    case ConstraintKind::FemStrainTet:
-      return std::abs(C);
-  }
-  return std::abs(C);
+void constraint_values_sse2(const Model& model, const Points& x, std::vector<double>& C) {
+  C.resize(model.constraints.size());
+  detail::constraint_values_packed<Pack<double, 16>>(model, x, x.data(), model.constraints.data(),
+                                                     model.constraints.size(), C.data());
 }
+
 
 }  // namespace pbdbench

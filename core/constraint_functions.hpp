@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <vector>
 
 #include "core/model.hpp"
@@ -55,13 +56,30 @@ ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Po
 
 // C of every model constraint at positions x (n x 3), in model order: the values
 // eval_constraint(model, c, x).C gives, bit for bit (the same stencils without their gradients,
-// two neighbouring constraints of one kind at a time in the lanes of a pack). For the metrics,
-// which need every C of every step and no gradient.
+// a run of neighbouring constraints of one kind at a time in the lanes of a pack, as wide as the
+// processor has: 8 doubles with AVX-512, 4 with AVX2, 2 otherwise). For the metrics, which need
+// every C of every step and no gradient.
 void constraint_values(const Model& model, const Points& x, std::vector<double>& C);
+// The same in 16-byte packs (SSE2) whatever the processor has: for the tests, which compare the
+// widths bit for bit.
+void constraint_values_sse2(const Model& model, const Points& x, std::vector<double>& C);
 
 // The error of a constraint as the metrics report it: |C| / |rest| for distance and volume when
 // rest != 0 (relative, dimensionless), |C| otherwise (absolute: m or m^3); |C| in radians for
 // bending.
-double normalized_error(const Constraint& c, double C);
+inline double normalized_error(const Constraint& c, double C) {
+  switch (c.kind) {
+    case ConstraintKind::Distance:
+    case ConstraintKind::Volume:
+      return std::abs(c.rest) > 0.0 ? std::abs(C) / std::abs(c.rest) : std::abs(C);
+    case ConstraintKind::Bending:
+    case ConstraintKind::FemDeviatoric:
+    case ConstraintKind::FemHydrostatic:
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet:
+      return std::abs(C);
+  }
+  return std::abs(C);
+}
 
 }  // namespace pbdbench

@@ -100,21 +100,36 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   s.groups.assign(model.group_names.size(), GroupError{});
   // C of every constraint (core/constraint_functions.hpp), in a buffer kept by the thread: a
   // fresh one of a large model's size is a fresh mapping whose pages fault in at every sample.
-  thread_local std::vector<double> values;
+  thread_local std::vector<double> values, errors, elastic_terms;
   constraint_values(model, x, values);
-  // One pass, the sums in registers (in memory they chain every constraint through a store and
-  // a load): the same operations in the same order as one constraint at a time. The group's
-  // sums are carried over a run of constraints of one group and stored when the group changes.
-  // The elastic energy of the compliant constraints (below) is summed in the same pass.
-  double sum_sq = 0.0, error_max = 0.0, elastic = 0.0;
+  // Two passes. The first computes each constraint's error and elastic energy, independent of
+  // one another (their divisions overlap); the second sums them in model order, the sums in
+  // registers (in memory they chain every constraint through a store and a load): the same
+  // operations in the same order as one constraint at a time. A constraint whose energy is not
+  // counted adds +0.0, which leaves the sum's bits as they are (it starts at +0.0 and never
+  // becomes -0.0). The group's sums are carried over a run of constraints of one group and
+  // stored when the group changes.
   const size_t m = model.constraints.size();
+  errors.resize(m);
+  elastic_terms.resize(m);
+  const Constraint* cs = model.constraints.data();
+  const double* V = values.data();
+  double* errs = errors.data();
+  double* terms = elastic_terms.data();
+  for (size_t j = 0; j < m; ++j) {
+    const Constraint& c = cs[j];
+    const bool fem = is_fem_kind(c.kind);
+    errs[j] = fem ? constraint_error(model, c, x) : normalized_error(c, V[j]);
+    // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it
+    // below (adding both would count each element twice).
+    terms[j] = c.compliance > 0.0 && !fem ? V[j] * V[j] / (2.0 * c.compliance) : 0.0;
+  }
+  double sum_sq = 0.0, error_max = 0.0, elastic = 0.0;
   for (size_t j = 0; j < m;) {
-    const int group = model.constraints[j].group;
+    const int group = cs[j].group;
     GroupError g = s.groups[static_cast<size_t>(group)];
-    for (; j < m && model.constraints[j].group == group; ++j) {
-      const Constraint& c = model.constraints[j];
-      const bool fem = is_fem_kind(c.kind);
-      const double err = fem ? constraint_error(model, c, x) : normalized_error(c, values[j]);
+    for (; j < m && cs[j].group == group; ++j) {
+      const double err = errs[j];
       g.max = std::max(g.max, err);
       g.rms += err * err;
       ++g.count;
@@ -124,9 +139,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
         error_max = kNaN;
         g.max = kNaN;
       }
-      // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it
-      // below (adding both would count each element twice).
-      if (c.compliance > 0.0 && !fem) elastic += values[j] * values[j] / (2.0 * c.compliance);
+      elastic += terms[j];
     }
     s.groups[static_cast<size_t>(group)] = g;
   }

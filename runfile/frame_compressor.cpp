@@ -1,5 +1,6 @@
 #include "runfile/frame_compressor.hpp"
 
+#include <libdeflate.h>
 #include <pthread.h>
 #include <zlib.h>
 
@@ -9,14 +10,36 @@
 
 namespace pbdbench {
 
+namespace {
+
+// One libdeflate compressor per thread and level, kept: allocating one costs more than
+// compressing a small frame.
+struct Deflater {
+  int level = -1;
+  libdeflate_compressor* c = nullptr;
+  ~Deflater() { libdeflate_free_compressor(c); }
+  libdeflate_compressor* at(int wanted) {
+    if (c == nullptr || level != wanted) {
+      libdeflate_free_compressor(c);
+      c = libdeflate_alloc_compressor(wanted);
+      if (c == nullptr) throw std::runtime_error("libdeflate: no compressor at level " + std::to_string(wanted));
+      level = wanted;
+    }
+    return c;
+  }
+};
+
+}  // namespace
+
 CompressedChunk deflate_chunk(const void* data, size_t size, int level) {
+  thread_local Deflater deflater;
   CompressedChunk c;
-  uLongf capacity = compressBound(static_cast<uLong>(size));
-  c.bytes.resize(capacity);
-  const int rc = compress2(c.bytes.data(), &capacity, static_cast<const Bytef*>(data), static_cast<uLong>(size), level);
-  if (rc != Z_OK) throw std::runtime_error("zlib compress2 failed with code " + std::to_string(rc));
-  if (capacity < size) {
-    c.bytes.resize(capacity);
+  // An output buffer of the input's size: libdeflate returns 0 when the stream would not fit,
+  // that is when deflating would not make the chunk smaller.
+  c.bytes.resize(size);
+  const size_t n = size == 0 ? 0 : libdeflate_zlib_compress(deflater.at(level), data, size, c.bytes.data(), size);
+  if (n > 0 && n < size) {
+    c.bytes.resize(n);
     c.deflated = true;
   } else {  // incompressible: stored as it is
     c.bytes.assign(static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);

@@ -6,6 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libsundials-dev libceres-dev libsuitesparse-dev libhdf5-dev zlib1g-dev
+  libdeflate-dev               # runfile/frame_compressor.cpp: the frames' zlib streams
   libtomlplusplus-dev libcli11-dev libfmt-dev libgtest-dev libbenchmark-dev nlohmann-json3-dev
   python3-matplotlib python3-h5py python3-numpy
   clang-14 libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer and the sanitizers

@@ -182,7 +182,8 @@ TEST(ConstraintFunctions, EvalConstraintDispatchesOnTheModelIndices) {
 TEST(ConstraintFunctions, ConstraintValuesAreEvalConstraintBitForBit) {
   // A cloth (distance, bending) and a tet block with FEM elements (distance, volume, the FEM
   // kinds), moved at random: constraint_values gives each C that eval_constraint gives, the same
-  // bits, whether it evaluates a constraint alone or beside a neighbour of its kind.
+  // bits, whether it evaluates a constraint alone or beside neighbours of its kind, in the
+  // widest packs this processor has and in 16-byte packs.
   Model m;
   ClothSpec cloth;
   cloth.nx = cloth.ny = 9;
@@ -205,6 +206,31 @@ TEST(ConstraintFunctions, ConstraintValuesAreEvalConstraintBitForBit) {
     kinds |= 1 << static_cast<int>(m.constraints[j].kind);
   }
   EXPECT_EQ(kinds, 31);  // all five kinds were compared
+  std::vector<double> narrow;
+  constraint_values_sse2(m, x, narrow);
+  ASSERT_EQ(narrow.size(), values.size());
+  for (size_t j = 0; j < values.size(); ++j) EXPECT_EQ(narrow[j], values[j]) << "constraint " << j;
+  // Runs of every length from 1 to 9 (a kind changes after each), so that every width meets
+  // runs shorter than, equal to and longer than its packs.
+  Model runs = m;
+  runs.constraints.clear();
+  size_t next_distance = 0, next_bending = 0;
+  std::vector<const Constraint*> distances, bendings;
+  for (const Constraint& c : m.constraints) {
+    if (c.kind == ConstraintKind::Distance) distances.push_back(&c);
+    if (c.kind == ConstraintKind::Bending) bendings.push_back(&c);
+  }
+  for (int length = 1; length <= 9; ++length)
+    for (int k = 0; k < length; ++k) {
+      runs.constraints.push_back(*distances[next_distance++ % distances.size()]);
+      if (k + 1 == length) runs.constraints.push_back(*bendings[next_bending++ % bendings.size()]);
+    }
+  constraint_values(runs, x, values);
+  constraint_values_sse2(runs, x, narrow);
+  for (size_t j = 0; j < runs.constraints.size(); ++j) {
+    EXPECT_EQ(values[j], eval_constraint(runs, runs.constraints[j], x).C) << "run constraint " << j;
+    EXPECT_EQ(narrow[j], values[j]) << "run constraint " << j;
+  }
 }
 
 TEST(ConstraintFunctions, NormalizedErrorIsRelativeForLengthsAndVolumes) {
