@@ -12,7 +12,8 @@
 // global_newton.cpp) in the fixed-size eigen-solve it uses against the heap-allocating dynamic one
 // it used before (written here), on the same random blocks, side by side (docs/performance.md);
 // global-cholmod's steady state (a step after a warm-up run), and the fast projections of
-// core/psd_projection.hpp beside the general 12 x 12 eigen-solve on the same blocks:
+// core/psd_projection.hpp beside the general 12 x 12 eigen-solve on the same blocks (and the
+// bending hinges' 8 x 8 path beside the 9 x 9 one):
 //
 //   build/benchmarks/bench_reference --benchmark_filter='global|psd' --benchmark_repetitions=5
 #include <benchmark/benchmark.h>
@@ -21,6 +22,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <array>
+#include <cmath>
 #include <utility>
 #include <fstream>
 #include <random>
@@ -267,6 +269,68 @@ void BM_PsdVolume(benchmark::State& bench) {
                                                       benchmark::Counter::kIsRate);
 }
 
+// Bending hinges shaped as the 64 x 64 cloth's while it hangs (wings 1/63 m, within 0.3 rad of
+// flat, the tips jittered), their exact blocks (grad phi grad phi^T - C s hess phi) / alpha from
+// reference/energy.cpp (rest pi, alpha = 100): the 9 x 9 translation-free path (before) against
+// the hinge's 8 x 8 one (core/psd_projection.hpp, project_psd_hinge).
+struct HingeBlocks {
+  std::vector<Eigen::Matrix<double, 12, 12>> H;
+  std::vector<std::array<Vec3, 4>> x;
+};
+
+HingeBlocks hinge_blocks() {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double h = 1.0 / 63.0;
+  HingeBlocks out;
+  for (int k = 0; k < 512; ++k) {
+    const double fold = 0.3 * u(rng);
+    std::array<Vec3, 4> x = {Vec3(0, 0, 0), Vec3(h, 0, 0), Vec3(0.5 * h, h, 0),
+                             Vec3(0.5 * h, -h * std::cos(fold), h * std::sin(fold))};
+    for (Vec3& p : x) p += 0.1 * h * Vec3(u(rng), u(rng), u(rng));
+    Model m;
+    m.gravity = Vec3::Zero();
+    m.rest_positions.resize(4, 3);
+    for (int i = 0; i < 4; ++i) m.rest_positions.row(i) = x[static_cast<size_t>(i)].transpose();
+    m.inv_mass.assign(4, 1.0);
+    m.radius.assign(4, 0.01);
+    Constraint c;
+    c.kind = ConstraintKind::Bending;
+    c.particles = {0, 1, 2, 3};
+    c.rest = 3.141592653589793;
+    c.compliance = 100.0;
+    m.constraints.push_back(c);
+    const EnergyModel E(m);
+    std::vector<double> values;
+    E.hessian(m.rest_positions, values);
+    const SparsityPattern& p = E.hessian_pattern();
+    Eigen::Matrix<double, 12, 12> H = Eigen::Matrix<double, 12, 12>::Zero();
+    for (int col = 0; col < p.n; ++col)
+      for (std::int64_t e = p.column_start[static_cast<size_t>(col)]; e < p.column_start[static_cast<size_t>(col) + 1]; ++e)
+        H(static_cast<int>(p.row[static_cast<size_t>(e)]), col) = values[static_cast<size_t>(e)];
+    out.H.push_back(H);
+    out.x.push_back(x);
+  }
+  return out;
+}
+
+template <bool Hinge>
+void BM_PsdHinge(benchmark::State& bench) {
+  const HingeBlocks blocks = hinge_blocks();
+  double sink = 0.0;
+  for (auto _ : bench)
+    for (size_t k = 0; k < blocks.H.size(); ++k) {
+      Eigen::Matrix<double, 12, 12> H = blocks.H[k];
+      const auto& x = blocks.x[k];
+      if constexpr (Hinge) psd::project_psd_hinge(H, x[0], x[1], x[2], x[3]);
+      else psd::project_psd_translation_free(H);
+      sink += H(0, 0);
+    }
+  benchmark::DoNotOptimize(sink);
+  bench.counters["blocks_per_s"] = benchmark::Counter(static_cast<double>(blocks.H.size()) * bench.iterations(),
+                                                      benchmark::Counter::kIsRate);
+}
+
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");
   for (std::string line; std::getline(f, line);)
@@ -297,6 +361,8 @@ int main(int argc, char** argv) {
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
   benchmark::RegisterBenchmark("psd/12/translation_free/eigen12", BM_PsdTranslationFree<false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/hinge/restricted9", BM_PsdHinge<false>)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("psd/hinge/hinge8", BM_PsdHinge<true>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/12/translation_free/restricted9", BM_PsdTranslationFree<true>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/volume/eigen12", BM_PsdVolume<false>)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("psd/volume/analytic", BM_PsdVolume<true>)->Unit(benchmark::kMicrosecond);

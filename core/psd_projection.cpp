@@ -252,6 +252,7 @@ void project_psd_tridiagonal_ql(Eigen::Matrix<double, N, N>& H) {
 }
 template void project_psd_tridiagonal_ql<3>(Eigen::Matrix<double, 3, 3>&);
 template void project_psd_tridiagonal_ql<6>(Eigen::Matrix<double, 6, 6>&);
+template void project_psd_tridiagonal_ql<8>(Eigen::Matrix<double, 8, 8>&);
 template void project_psd_tridiagonal_ql<9>(Eigen::Matrix<double, 9, 9>&);
 template void project_psd_tridiagonal_ql<12>(Eigen::Matrix<double, 12, 12>&);
 
@@ -265,6 +266,7 @@ void project_psd(Eigen::Matrix<double, N, N>& H) {
 }
 template void project_psd<3>(Eigen::Matrix<double, 3, 3>&);
 template void project_psd<6>(Eigen::Matrix<double, 6, 6>&);
+template void project_psd<8>(Eigen::Matrix<double, 8, 8>&);
 template void project_psd<9>(Eigen::Matrix<double, 9, 9>&);
 template void project_psd<12>(Eigen::Matrix<double, 12, 12>&);
 
@@ -306,6 +308,53 @@ bool project_psd_translation_free(Mat12& H) {
   if (!definite) project_psd_tridiagonal_ql<9>(M);
   H = expand_translation_free(M);
   return definite;
+}
+
+namespace {
+
+// M <- P M P with P = I - beta w w^T, beta = 2 / (w^T w) (a Householder reflection): with
+// p = beta M w and r = p - (beta w^T p / 2) w, P M P = M - w r^T - r w^T. Each entry is
+// M_ij - (w_i r_j + r_i w_j), the same products summed in the same order on both sides: the result
+// is symmetric bit for bit when M is.
+void reflect_both_sides(Mat9& M, const Vec9& w, double beta) {
+  const Vec9 p = beta * (M * w);
+  const Vec9 r = p - (0.5 * beta * w.dot(p)) * w;
+  for (int j = 0; j < 9; ++j)
+    for (int i = 0; i < 9; ++i) M(i, j) -= w(i) * r(j) + r(i) * w(j);
+}
+
+}  // namespace
+
+void project_psd_hinge(Mat12& H, const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3) {
+  const Vec3 e = x1 - x0;
+  const double le2 = e.squaredNorm();
+  if (!(le2 > 0.0)) {
+    project_psd_translation_free(H);
+    return;
+  }
+  // v = (0, e, t1 e, t2 e) / |e| over the vertices; its restriction z = sigma (x) e (the length of
+  // z is irrelevant: only its direction enters the reflection).
+  const double s[4] = {0.0, 1.0, (x2 - x0).dot(e) / le2, (x3 - x0).dot(e) / le2};
+  Vec9 w;
+  for (int c = 0; c < 3; ++c) {
+    const double sigma = kQ[0][c] * s[0] + kQ[1][c] * s[1] + kQ[2][c] * s[2] + kQ[3][c] * s[3];
+    w.segment<3>(3 * c) = sigma * e;
+  }
+  // The reflection that maps z onto -sign(z_8) |z| e_8: w = z + sign(z_8) |z| e_8 (the sign that
+  // avoids cancellation, so |w| >= |z| > 0: sigma != 0 since s is not constant).
+  const double znorm = w.norm();
+  w(8) += std::signbit(w(8)) ? -znorm : znorm;
+  const double beta = 2.0 / w.squaredNorm();
+
+  Mat9 M = restrict_translation_free(H);
+  M = 0.5 * (M + M.transpose());
+  reflect_both_sides(M, w, beta);
+  Eigen::Matrix<double, 8, 8> lead = M.topLeftCorner<8, 8>();
+  project_psd_tridiagonal_ql<8>(lead);
+  M.setZero();
+  M.topLeftCorner<8, 8>() = lead;
+  reflect_both_sides(M, w, beta);
+  H = expand_translation_free(M);
 }
 
 Mat12 volume_term_hessian_psd(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3,

@@ -46,6 +46,7 @@ template <int N>
 void project_psd(Eigen::Matrix<double, N, N>& H);
 extern template void project_psd<3>(Eigen::Matrix<double, 3, 3>&);
 extern template void project_psd<6>(Eigen::Matrix<double, 6, 6>&);
+extern template void project_psd<8>(Eigen::Matrix<double, 8, 8>&);
 extern template void project_psd<9>(Eigen::Matrix<double, 9, 9>&);
 extern template void project_psd<12>(Eigen::Matrix<double, 12, 12>&);
 
@@ -58,6 +59,7 @@ template <int N>
 void project_psd_tridiagonal_ql(Eigen::Matrix<double, N, N>& H);
 extern template void project_psd_tridiagonal_ql<3>(Eigen::Matrix<double, 3, 3>&);
 extern template void project_psd_tridiagonal_ql<6>(Eigen::Matrix<double, 6, 6>&);
+extern template void project_psd_tridiagonal_ql<8>(Eigen::Matrix<double, 8, 8>&);
 extern template void project_psd_tridiagonal_ql<9>(Eigen::Matrix<double, 9, 9>&);
 extern template void project_psd_tridiagonal_ql<12>(Eigen::Matrix<double, 12, 12>&);
 
@@ -69,6 +71,25 @@ Mat12 expand_translation_free(const Mat9& M);
 // the translations is dropped), through the 9 x 9 restriction (project_psd_tridiagonal_ql<9>).
 // Returns true when M was positive definite and no eigen-solve ran.
 bool project_psd_translation_free(Mat12& H);
+
+// [H]_+ of a symmetric block of a bending hinge over (x0, x1, x2, x3), the hinge the edge
+// x0-x1 and the wings' tips x2 and x3: a Hessian of any function of the dihedral angle phi
+// (reference/energy.cpp's (grad phi grad phi^T - C s hess phi) / alpha). Besides the
+// translations, such a block has the null vector
+//   v = (0, u, t1 u, t2 u),  u = (x1 - x0) / |x1 - x0|,  t_k = (x_{k+1} - x0) . u / |x1 - x0|
+// (each vertex slid along the hinge in proportion to where it projects on it): sliding x_k by
+// s_k u keeps u and both wings' planes, so phi(x + sum_k s_k e_k (x) u) = phi(x) for every s,
+// whence H v = -(du/dx)^T sum_k s_k grad_k phi, and sum_k s_k grad_k phi = 0 for this s
+// (grad_2 phi = -n1 / h1, grad_3 phi = n2 / h2, grad_1 phi = t1 n1 / h1 - t2 n2 / h2); and
+// grad phi . v = 0. On the 9 x 9 restriction M (header above) v is z = sigma (x) u,
+// sigma_c = sum_k q(k, c) s_k; with the Householder reflection P that maps z onto the last axis,
+// P M P is zero on its last row and column in exact arithmetic, so [M]_+ = P ([M']_+ (+) 0) P
+// with M' its leading 8 x 8: an 8 x 8 eigen-solve (project_psd_tridiagonal_ql<8>) instead of a
+// 9 x 9 one, and no Cholesky attempt (such a block, C != 0, has 3 or 4 negative eigenvalues: the
+// rank-one grad phi grad phi^T cannot make the 4 negative ones of hess phi positive; at C = 0 it is
+// singular). The general projection of H to rounding (tests/core/test_psd_projection.cpp).
+// A zero-length hinge (u undefined) goes through project_psd_translation_free.
+void project_psd_hinge(Mat12& H, const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3);
 
 // [(g g^T + C hess V) / alpha]_+ over (x0, x1, x2, x3), g = grad V, for the volume term
 // C^2 / (2 alpha) with C = V(x) - rest (alpha > 0), by the analytic eigensystem of the header.

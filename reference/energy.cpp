@@ -591,7 +591,8 @@ void EnergyModel::visit_hessian_terms(const Points& x, bool project, Visit&& vis
         Mat12 H;
         if (!bending_term(c, x, nullptr, &H).valid) continue;
         H *= inv_alpha;
-        if (project) psd::project_psd_translation_free(H);  // a hinge does not see translations
+        if (project)  // 8 x 8: a hinge sees neither translations nor the slide along its edge
+          psd::project_psd_hinge(H, x.row(p[0]), x.row(p[1]), x.row(p[2]), x.row(p[3]));
         visit(H, slots, dof);
         break;
       }

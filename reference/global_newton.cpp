@@ -84,8 +84,11 @@ class SerialOpenMp {
 struct GlobalNewton::Impl {
   SolverOptions options;
   GlobalLinearSolver kind;
-  // CHOLMOD: the factorisation object keeps its symbolic analysis while the pattern stays.
-  Eigen::CholmodSupernodalLLT<SpMat, Eigen::Lower> cholmod;
+  // CHOLMOD: the factorisation object keeps its symbolic analysis while the pattern stays. A is
+  // handed over as its upper triangle (stype 1): cholmod_factorize then forms the permuted lower
+  // triangle it factorises, tril(P A P^T), with one transpose; from the lower triangle (stype -1)
+  // it takes two (triu(P A P^T), then its transpose). The same matrix either way.
+  Eigen::CholmodSupernodalLLT<SpMat, Eigen::Upper> cholmod;
   bool analysed = false;  // cholmod holds the analysis of A's pattern
 
   // The Newton matrix, both triangles, in a pattern kept between iterations and steps: the
@@ -233,12 +236,17 @@ struct GlobalNewton::Impl {
     const SerialOpenMp serial;
     if (!analysed) {
       cholmod.setShift(0.0);
-      // The fill-reducing ordering: CHOLMOD tries AMD and METIS and keeps the one with the fewer
-      // nonzeros in L (its default tries METIS only when AMD's fill is poor, and keeps AMD on the
-      // 64 x 64 cloth: 6.7e8 flops a factorisation against METIS's 4.5e8). Both are deterministic.
-      cholmod.cholmod().nmethods = 2;
+      // The fill-reducing ordering: CHOLMOD tries AMD, METIS and its own nested dissection
+      // (NESDIS: METIS's node separators, then constrained minimum degree on the whole graph) and
+      // keeps the one with the fewest nonzeros in L (its default tries METIS only when AMD's fill
+      // is poor, and keeps AMD on the 64 x 64 cloth: 6.7e8 flops a factorisation against METIS's
+      // 4.5e8). On the cloth NESDIS wins: 1.880 M nonzeros against METIS's 1.897 M, as many flops
+      // (4.55e8), and a factorisation faster with ATLAS (docs/performance.md). All three are
+      // deterministic.
+      cholmod.cholmod().nmethods = 3;
       cholmod.cholmod().method[0].ordering = CHOLMOD_AMD;
       cholmod.cholmod().method[1].ordering = CHOLMOD_METIS;
+      cholmod.cholmod().method[2].ordering = CHOLMOD_NESDIS;
       cholmod.analyzePattern(A);
       analysed = true;
     }

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -146,6 +147,65 @@ TEST(PsdProjection, TranslationFreePathEqualsTheGeneralOne) {
     }
   }
   EXPECT_EQ(definite, 67);
+}
+
+// The hinge path (project_psd_hinge) against the general 12 x 12 projection, on blocks with the
+// null space of a hinge's Hessian: N S N with S symmetric and N the projector onto the complement
+// of the translations and of v = (0, u, t1 u, t2 u) (core/psd_projection.hpp). Hinges random, with
+// the wings' tips projecting outside the edge (t < 0, t > 1), short and long edges, the tips on
+// the edge's line (degenerate wings: v is still the null vector asked for); blocks random
+// (indefinite), positive semi-definite, rank one, clustered eigenvalues (-1, 0, 2 repeated), zero.
+TEST(PsdProjection, HingePathEqualsTheGeneralOne) {
+  Random rng(19);
+  const std::string kinds[] = {"random", "semidefinite", "rank one", "clustered", "zero"};
+  for (int trial = 0; trial < 400; ++trial) {
+    std::array<Vec3, 4> x;
+    for (Vec3& p : x) p = rng.vec(-1.0, 1.0);
+    const int shape = trial % 4;
+    if (shape == 1) x[1] = x[0] + 1e-3 * rng.vec(-1.0, 1.0);  // a short edge
+    if (shape == 2) {  // tips far outside the edge's span
+      x[2] += 5.0 * (x[1] - x[0]);
+      x[3] -= 4.0 * (x[1] - x[0]);
+    }
+    if (shape == 3) x[2] = x[0] + rng.uniform(-2.0, 3.0) * (x[1] - x[0]);  // a degenerate wing
+    const Vec3 e = x[1] - x[0];
+    const Vec3 u = e.normalized();
+    const double t1 = (x[2] - x[0]).dot(e) / e.squaredNorm(), t2 = (x[3] - x[0]).dot(e) / e.squaredNorm();
+    Eigen::Matrix<double, 12, 4> B = Eigen::Matrix<double, 12, 4>::Zero();  // translations and v
+    for (int k = 0; k < 4; ++k) B.block<3, 3>(3 * k, 0) = Eigen::Matrix3d::Identity();
+    B.block<3, 1>(3, 3) = u;
+    B.block<3, 1>(6, 3) = t1 * u;
+    B.block<3, 1>(9, 3) = t2 * u;
+    const Eigen::HouseholderQR<Eigen::Matrix<double, 12, 4>> qr(B);
+    const Eigen::Matrix<double, 12, 4> Y = qr.householderQ() * Eigen::Matrix<double, 12, 4>::Identity();
+    const Mat12 N = Mat12::Identity() - Y * Y.transpose();
+
+    const std::string& kind = kinds[(trial / 4) % 5];
+    Mat12 S = random_symmetric<12>(rng);
+    if (kind == "semidefinite") S = S * S.transpose();
+    if (kind == "rank one") {
+      Eigen::Matrix<double, 12, 1> g;
+      for (int i = 0; i < 12; ++i) g(i) = rng.uniform(-1.0, 1.0);
+      S = g * g.transpose();
+    }
+    if (kind == "clustered") {
+      Eigen::Matrix<double, 12, 1> d;
+      d << -1, -1, -1, 0, 0, 2, 2, 2, 2, -1, 0, 2;
+      const Eigen::HouseholderQR<Mat12> r(random_symmetric<12>(rng));
+      const Mat12 R = r.householderQ();
+      S = R * d.asDiagonal() * R.transpose();
+    }
+    if (kind == "zero") S.setZero();
+    const double scale = std::pow(10.0, rng.uniform(-6.0, 9.0));
+    Mat12 H = scale * (N * S * N);
+    H = 0.5 * (H + H.transpose());
+    Mat12 general = H, fast = H;
+    psd::project_psd<12>(general);
+    psd::project_psd_hinge(fast, x[0], x[1], x[2], x[3]);
+    const double tol = 1e-13 * std::max(max_abs(H), 1e-300);
+    EXPECT_LE(max_abs(fast - general), tol) << "trial " << trial << ", " << kind << ", shape " << shape;
+    EXPECT_LE(max_abs(fast - fast.transpose()), tol) << "trial " << trial;  // as symmetric as the general one
+  }
 }
 
 // (g g^T + C hess V) / alpha over the four points, hess V by central differences of grad V

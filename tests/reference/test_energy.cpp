@@ -22,6 +22,7 @@
 #include "core/constraint_functions.hpp"
 #include "core/fem.hpp"
 #include "core/generators.hpp"
+#include "core/psd_projection.hpp"
 #include "tests/reference/energy_fixtures.hpp"
 
 namespace pbdbench {
@@ -394,6 +395,58 @@ TEST(EnergyModel, BendingGradientAndHessianMatchFiniteDifferencesNearFlat) {
                   distance, rest, worst_g, worst_h);
     }
   }
+}
+
+TEST(EnergyModel, BendingProjectedHessianEqualsTheGeneralProjection) {
+  // The bending term's projected block (psd::project_psd_hinge: an 8 x 8 eigen-solve past the
+  // translations and the slide along the edge) against the general 12 x 12 eigen-clamp of its exact
+  // block, on hinges 1e-8 ... 2.8 rad from flat on both sides, exactly flat (the block rank one,
+  // semi-definite), nearly closed, with thin wings and with the tips projecting outside the edge;
+  // rest angles pi, 2.5 and 1.0. And the null vector the hinge path relies on:
+  // |H v| <= 1e-13 |H| |v|, v = (0, u, t1 u, t2 u).
+  const double pi = std::numbers::pi;
+  Random rng(29);
+  double worst = 0.0, worst_null = 0.0;
+  int indefinite = 0, hinges = 0;
+  for (double distance : {0.0, 1e-8, 1e-4, 1e-2, 0.3, 1.5, 2.8, pi - 1e-3}) {
+    for (double rest : {pi, 2.5, 1.0}) {
+      for (int n = 0; n < 20; ++n) {
+        Points x = hinge_at(rng, pi - distance, n % 2 == 0 ? 1.0 : -1.0);
+        if (distance == 0.0) x.col(2).setZero();  // exactly flat: phi = 0
+        const Vec3 e = x.row(1) - x.row(0);
+        if (n % 5 == 3) x.row(2) = x.row(0) + 0.5 * e.transpose() + 1e-3 * (x.row(2) - x.row(0));  // a thin wing
+        if (n % 5 == 4) x.row(3) += 3.0 * e.transpose();  // a tip beyond the edge
+        const Model m = bending_model(x, rest);
+        const EnergyModel E(m);
+        std::vector<double> exact, projected;
+        E.hessian(x, exact);
+        E.hessian(x, projected, true);
+        const Eigen::MatrixXd H = test::dense(E.hessian_pattern(), exact);
+        const Eigen::MatrixXd Hp = test::dense(E.hessian_pattern(), projected);
+        Eigen::Matrix<double, 12, 12> general = H;
+        general = 0.5 * (general + general.transpose()).eval();
+        psd::project_psd<12>(general);
+        const double scale = H.cwiseAbs().maxCoeff();
+        const double err = (Hp - general).cwiseAbs().maxCoeff() / scale;
+        worst = std::max(worst, err);
+        EXPECT_LE(err, 1e-13) << distance << " rad from flat, rest " << rest << ", hinge " << n;
+        Eigen::Matrix<double, 12, 1> v = Eigen::Matrix<double, 12, 1>::Zero();
+        const double t1 = (x.row(2) - x.row(0)).dot(e.transpose()) / e.squaredNorm();
+        const double t2 = (x.row(3) - x.row(0)).dot(e.transpose()) / e.squaredNorm();
+        v.segment<3>(3) = e.normalized();
+        v.segment<3>(6) = t1 * e.normalized();
+        v.segment<3>(9) = t2 * e.normalized();
+        const double null = (H * v).norm() / (scale * v.norm());
+        worst_null = std::max(worst_null, null);
+        EXPECT_LE(null, 1e-13) << distance << " rad from flat, rest " << rest << ", hinge " << n;
+        if (Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(H).eigenvalues()(0) < -1e-12 * scale) ++indefinite;
+        ++hinges;
+      }
+    }
+  }
+  EXPECT_GE(indefinite, hinges / 2) << "the projection was not exercised";
+  std::printf("[ measured ] %d hinges (%d indefinite): largest |hinge path - general| / |H| %.3g, "
+              "|H v| / (|H| |v|) %.3g\n", hinges, indefinite, worst, worst_null);
 }
 
 TEST(EnergyModel, FlatBendingTermWithRestPiHasZeroGradientAndARankOneHessian) {
