@@ -31,12 +31,14 @@
 
 #include <time.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include "catalog/solver_catalog.hpp"
 #include "config/config.hpp"
 #include "core/constraint_functions.hpp"
 #include "harness/runner.hpp"
 #include "runfile/build_info.hpp"
+#include "runfile/frame_compressor.hpp"
 #include "solver_api/solver.hpp"
 
 using namespace pbdbench;
@@ -318,6 +320,33 @@ void BM_Harness(benchmark::State& bench, std::string scenario, std::vector<confi
   bench.counters["cpu_per_wall"] = cpu / wall;
 }
 
+// ---------------------------------------------------------------------------------------------
+// A frame's deflating (runfile/frame_compressor.hpp, the frame worker's whole work): the
+// positions and velocities of a cloth in steady state, by the writer's libdeflate at level 1
+// (`libdeflate`) and by zlib's compress2 at level 1 (`zlib`, what the writer used before
+// session 25). MB_per_s: input bytes over CPU time; ratio: output over input bytes.
+void BM_FrameDeflate(benchmark::State& bench, std::string scene, bool zlib) {
+  const Warm& w = warm(scene);
+  const size_t bytes = static_cast<size_t>(w.state.x.rows()) * 3 * sizeof(double);
+  std::vector<unsigned char> out(compressBound(static_cast<uLong>(bytes)));
+  size_t in = 0, written = 0;
+  const double c0 = thread_cpu_seconds();
+  for (auto _ : bench)
+    for (const Points* p : {&w.state.x, &w.state.v}) {
+      if (zlib) {
+        uLongf n = static_cast<uLongf>(out.size());
+        compress2(out.data(), &n, reinterpret_cast<const Bytef*>(p->data()), static_cast<uLong>(bytes), 1);
+        written += n;
+      } else {
+        written += deflate_chunk(p->data(), bytes, 1).bytes.size();
+      }
+      in += bytes;
+    }
+  const double cpu = thread_cpu_seconds() - c0;
+  bench.counters["MB_per_s"] = static_cast<double>(in) / cpu * 1e-6;
+  bench.counters["ratio"] = static_cast<double>(written) / static_cast<double>(in);
+}
+
 std::string cpu_model() {
   std::ifstream f("/proc/cpuinfo");
   for (std::string line; std::getline(f, line);)
@@ -383,6 +412,11 @@ int main(int argc, char** argv) {
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->Iterations(1);
+  for (const char* scene : {"cloth64", "cloth256"})
+    for (const bool zlib : {false, true})
+      benchmark::RegisterBenchmark(("frame_deflate/" + std::string(scene) + (zlib ? "/zlib" : "/libdeflate")).c_str(),
+                                   BM_FrameDeflate, std::string(scene), zlib)
+          ->Unit(benchmark::kMillisecond);
   benchmark::AddCustomContext("pbdbench_version", build_info().version);
   benchmark::AddCustomContext("git_commit", build_info().git_commit);
   benchmark::AddCustomContext("compiler", build_info().compiler);

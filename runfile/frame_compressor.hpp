@@ -28,9 +28,9 @@ struct CompressedChunk {
 };
 
 // A zlib stream (RFC 1950, what HDF5's deflate filter reads and writes) of `size` bytes at
-// `level` (1 fastest .. 12 smallest), made by libdeflate: on frames of doubles its level 1 is
-// about 2.7 times as fast as zlib's compress2 at level 1, and a little smaller
-// (docs/performance.md). Any zlib inflates it.
+// `level` (1 fastest .. 12 smallest), made by libdeflate: on a cloth's frames its level 1 is 2.5
+// to 2.8 times as fast as zlib's compress2 at level 1, the output within 1 % of zlib's size
+// (bench_solvers frame_deflate/*, docs/performance.md). Any zlib inflates it.
 CompressedChunk deflate_chunk(const void* data, size_t size, int level);
 // The inverse, for tests: inflates `c` to `size` bytes (or copies it when it was not deflated).
 std::vector<unsigned char> inflate_chunk(const CompressedChunk& c, size_t size);
