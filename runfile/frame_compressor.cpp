@@ -57,7 +57,11 @@ std::vector<unsigned char> inflate_chunk(const CompressedChunk& c, size_t size) 
   return out;
 }
 
-FrameCompressor::FrameCompressor(int level) : level_(level), worker_([this] { work(); }) {}
+FrameCompressor::FrameCompressor(int level, int streams)
+    : level_(level),
+      streams_(streams > 0 ? streams : 1),
+      skip_(static_cast<size_t>(streams > 0 ? streams : 1), 0),
+      worker_([this] { work(); }) {}
 
 FrameCompressor::~FrameCompressor() {
   {
@@ -119,11 +123,20 @@ void FrameCompressor::work() {
       todo_.pop_front();
     }
     CompressedChunk c;
-    try {
-      c = deflate_chunk(job.second.data(), job.second.size(), level_);
-    } catch (...) {
-      c.bytes = std::move(job.second);  // stored as it is: never lose a frame
+    int& skip = skip_[static_cast<size_t>(job.first % streams_)];
+    if (skip > 0) {  // this stream's last try did not pay: stored as it is, untried
+      --skip;
+      c.bytes = job.second;
       c.deflated = false;
+    } else {
+      try {
+        c = deflate_chunk(job.second.data(), job.second.size(), level_);
+      } catch (...) {
+        c.bytes = job.second;  // stored as it is: never lose a frame
+        c.deflated = false;
+      }
+      if (static_cast<double>(c.bytes.size()) > kPaysBelow * static_cast<double>(job.second.size()))
+        skip = kSkipAfterPoor;
     }
     c.index = job.first;
     {

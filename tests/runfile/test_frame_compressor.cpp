@@ -81,5 +81,46 @@ TEST(FrameCompressor, Deterministic) {
   EXPECT_EQ(a.bytes, b[0].bytes);
 }
 
+TEST(FrameCompressor, AStreamWhoseDeflatingDidNotPayIsStoredAsItIsForAWhile) {
+  // Two interleaved streams (chunk i in stream i % 2): stream 1 always smooth, stream 0 random
+  // bits for its first 3 chunks, smooth after. Stream 1 is deflated every time; stream 0's random
+  // chunks are not (the first tried, the next ones skipped), its first kSkipAfterPoor chunks
+  // after a poor one are stored untried even once smooth, and the one after is deflated again.
+  // Every chunk comes back bit for bit.
+  FrameCompressor fc(1, 2);
+  const int per_stream = FrameCompressor::kSkipAfterPoor + 6;
+  std::vector<std::vector<unsigned char>> sent;
+  for (int k = 0; k < per_stream; ++k)
+    for (int stream = 0; stream < 2; ++stream) {
+      std::vector<unsigned char> bytes;
+      if (stream == 0 && k < 3) {
+        const std::vector<std::uint64_t> r = random_bits(600 + k);
+        bytes.resize(r.size() * sizeof(std::uint64_t));
+        std::memcpy(bytes.data(), r.data(), bytes.size());
+      } else {
+        const std::vector<double> d = smooth(600 + k, 0.25 + k);
+        bytes.resize(d.size() * sizeof(double));
+        std::memcpy(bytes.data(), d.data(), bytes.size());
+      }
+      fc.submit(bytes.data(), bytes.size());
+      sent.push_back(std::move(bytes));
+    }
+  const std::vector<CompressedChunk> got = fc.take(true);
+  ASSERT_EQ(got.size(), sent.size());
+  for (size_t i = 0; i < got.size(); ++i) {
+    const std::vector<unsigned char> back = inflate_chunk(got[i], sent[i].size());
+    ASSERT_EQ(back, sent[i]) << "chunk " << i;
+    const int k = static_cast<int>(i / 2);
+    if (i % 2 == 1) {
+      EXPECT_TRUE(got[i].deflated) << "stream 1, chunk " << k;
+    } else {
+      // Stream 0: tried at k = 0 (poor), skipped for k = 1..15 (the random k = 1, 2 and the
+      // smooth k = 3..15), tried again at k = 16 (smooth: deflated), and deflated after.
+      const bool tried_and_paid = k > FrameCompressor::kSkipAfterPoor;
+      EXPECT_EQ(got[i].deflated, tried_and_paid) << "stream 0, chunk " << k;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace pbdbench
