@@ -284,14 +284,17 @@ void BM_Plain(benchmark::State& bench, std::string scene, std::string solver) {
 // may shorten the run (time.duration); without it the run is the scene's own (hanging_cloth:
 // 2 s), over which the per-run costs (the file created with its model, the last publish synced
 // to disk) are spread as in a user's run.
-void BM_Harness(benchmark::State& bench, std::string scenario, std::vector<config::Override> sets) {
+void BM_Harness(benchmark::State& bench, std::string scenario, std::vector<config::Override> sets,
+                StepLogging logging) {
   const config::Config cfg = config::load(scenario, sets);
+  RunControl control;
+  control.logging = logging;
   const std::filesystem::path out =
       std::filesystem::temp_directory_path() / ("pbdbench_bench_harness_" + std::to_string(getpid()) + ".h5");
   double wall = 0.0, solver = 0.0, setup = 0.0, cpu = 0.0, process_cpu = 0.0, solver_cpu = 0.0, setup_cpu = 0.0;
   for (auto _ : bench) {
     const double c0 = thread_cpu_seconds(), p0 = process_cpu_seconds();
-    const RunOutcome r = run_config(cfg, out);
+    const RunOutcome r = run_config(cfg, out, control);
     cpu += thread_cpu_seconds() - c0;
     process_cpu += process_cpu_seconds() - p0;
     wall += r.wall_time;
@@ -302,10 +305,11 @@ void BM_Harness(benchmark::State& bench, std::string scenario, std::vector<confi
     std::filesystem::remove(out);
   }
   // In CPU time, which other processes on a shared machine move much less than wall time: the
-  // logging's share of the process's CPU time (the run's thread and the frame worker; the
-  // xdmf export of the command line is not part of run_config).
+  // logging's share of the process's CPU time (the run's thread, the step logger's when it has
+  // one, and the frame worker; the xdmf export of the command line is not part of run_config).
   bench.counters["logging_cpu_pct"] = 100.0 * (process_cpu - solver_cpu - setup_cpu) / process_cpu;
-  // The same on the run's thread alone (the frame worker's deflating left out).
+  // The same on the run's thread alone (the step logger's thread and the frame worker's
+  // deflating left out).
   bench.counters["logging_thread_cpu_pct"] = 100.0 * (cpu - solver_cpu - setup_cpu) / cpu;
   // Everything outside solver.step(), the setup included (the scene built, the solver
   // constructed: its colouring and compiled projections are the solver's cost, not the logging's).
@@ -407,11 +411,16 @@ int main(int argc, char** argv) {
       {"cloth256", {{"scene.resolution", "[256, 256]"}}},
       {"cloth64_0.5s", {{"time.duration", "0.5"}}},
       {"cloth256_0.5s", {{"scene.resolution", "[256, 256]"}, {"time.duration", "0.5"}}}};
+  // Each with the logging as a run has it (harness/step_logger.hpp: on a thread of its own on a
+  // machine with a core to spare) and, as /inline, on the run's thread after every step.
   for (const auto& [id, sets] : runs)
-    benchmark::RegisterBenchmark(("harness/" + id).c_str(), BM_Harness, std::string("hanging_cloth"), sets)
-        ->Unit(benchmark::kMillisecond)
-        ->UseRealTime()
-        ->Iterations(1);
+    for (const bool inline_logging : {false, true})
+      benchmark::RegisterBenchmark(("harness/" + id + (inline_logging ? "/inline" : "")).c_str(), BM_Harness,
+                                   std::string("hanging_cloth"), sets,
+                                   inline_logging ? StepLogging::Inline : StepLogging::Auto)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime()
+          ->Iterations(1);
   for (const char* scene : {"cloth64", "cloth256"})
     for (const bool zlib : {false, true})
       benchmark::RegisterBenchmark(("frame_deflate/" + std::string(scene) + (zlib ? "/zlib" : "/libdeflate")).c_str(),

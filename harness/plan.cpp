@@ -26,7 +26,8 @@ constexpr double kProjectionSeconds = 2e-7;   // one constraint or contact proje
 constexpr double kParticleSeconds = 1e-6;     // one particle, one step: prediction, metrics
 constexpr double kRowSeconds = 1e-4;          // one row: metrics and the writer
 constexpr double kReferenceSeconds = 2e-4;    // one constraint or particle, one reference step
-constexpr double kParticleBytes = 2048;       // state, work arrays, metrics, per particle
+constexpr double kParticleBytes = 2048;       // state, work arrays, metrics, the step logger's
+                                              // copies (harness/step_logger.hpp), per particle
 constexpr double kConstraintBytes = 512;      // constraint, ordering, multipliers
 constexpr double kContactBytes = 256;
 constexpr double kReferenceBytes = 16384;     // per constraint or particle: sparse factors

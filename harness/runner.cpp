@@ -14,6 +14,7 @@
 #include "core/cancel.hpp"
 #include "harness/plan.hpp"
 #include "harness/relax.hpp"
+#include "harness/step_logger.hpp"
 #include "metrics/health.hpp"
 #include "metrics/shadow.hpp"
 #include "solver_api/solver.hpp"
@@ -34,23 +35,6 @@ double thread_cpu_seconds() {
   timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-
-// The first quantity of a sample that must be finite and is not ("total energy = inf J"), or "".
-// NaN-by-design series (observables a scene does not have) are not looked at.
-// elastic_defined: false where elastic_energy (and the total) is NaN by definition
-// (MetricsBaseline::elastic_defined).
-std::string non_finite(const Sample& s, bool elastic_defined) {
-  const std::pair<const char*, double> scalars[] = {
-      {"kinetic energy", s.kinetic_energy}, {"potential energy", s.potential_energy},
-      {"elastic energy", s.elastic_energy}, {"total energy", s.total_energy}};
-  const std::size_t checked = elastic_defined ? 4 : 2;  // the elastic and total energies last
-  for (std::size_t i = 0; i < checked; ++i)
-    if (!std::isfinite(scalars[i].second))
-      return std::string(scalars[i].first) + " = " + std::to_string(scalars[i].second) + " J";
-  if (!s.linear_momentum.allFinite()) return "linear momentum not finite";
-  if (!s.angular_momentum.allFinite()) return "angular momentum not finite";
-  return "";
 }
 
 }  // namespace
@@ -146,7 +130,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   MetricsBaseline baseline = measure_baseline(model, state);
   baseline.elastic_defined = elastic_energy_defined(model, solver_opts);
   Sample sample = measure(model, state, baseline);
-  if (const std::string bad = non_finite(sample, baseline.elastic_defined); !bad.empty())
+  if (const std::string bad = non_finite_quantity(sample, baseline.elastic_defined); !bad.empty())
     throw config::ConfigError(config::Source{config.file.string(), 0}, "scene",
                               "the initial state cannot be measured: " + bad +
                                   " (masses, positions, velocities or gravity too large)");
@@ -205,12 +189,65 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   writer.append({state.time, state.step, 0.0, &sample, &initial_report});
   writer.append_frame(state.time, state.x, &state.v);
 
+  // Each step's metrics, row, frame and checks (harness/step_logger.hpp): on a thread of their
+  // own when the run has a core to spare, in step order either way.
+  StepLogger::Context logging;
+  logging.model = &model;
+  logging.baseline = &baseline;
+  logging.limits = run.limits;
+  logging.writer = &writer;
+  logging.health = &health;
+  logging.initial_sample = &sample;
+  logging.initial_velocities = &state.v;
+  const bool threaded = step_logging_threaded(control.logging, available_cores(),
+                                              resolve_threads(solver_opts.threads), model);
+  StepLogger logger(logging, threaded);
+  // The run ends (every way out waits for the logger first, then writes the file's end).
+  auto end_run = [&](RunStatus status, const std::string& reason) -> void {
+    outcome.status = status;
+    outcome.reason = reason;
+    outcome.steps_completed = logger.steps_logged();
+    outcome.solver_time = logger.solver_time();
+    outcome.solver_cpu_time = logger.solver_cpu_time();
+    outcome.final_sample = logger.last_sample();
+    outcome.wall_time = seconds_since(t_start);
+    record_warnings();
+  };
+  // A logged step exploded: the run ends there, whatever the run's thread did after it.
+  auto exploded = [&] {
+    outcome.exploded_step = logger.exploded_step();
+    end_run(RunStatus::Exploded, logger.exploded_reason());
+    writer.finish(RunStatus::Exploded, outcome.reason, outcome.steps_completed, outcome.wall_time,
+                  outcome.exploded_step, logger.exploded_time());
+    return outcome;
+  };
+  // Something threw, on the run's thread or the logger's. Any failure while a cancellation is
+  // pending is the cancellation's doing (core/cancel.hpp): the file keeps the steps before it.
+  auto failed = [&](const std::exception& e) {
+    if (dynamic_cast<const Cancelled*>(&e) != nullptr || cancel_requested()) {
+      end_run(RunStatus::Incomplete,
+              "interrupted during step " + std::to_string(logger.steps_logged() + 1) +
+                  (dynamic_cast<const Cancelled*>(&e) != nullptr ? std::string(" (") + e.what() + ")" : ""));
+      writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
+      return outcome;
+    }
+    end_run(RunStatus::Failed, e.what());
+    writer.finish(RunStatus::Failed, outcome.reason, outcome.steps_completed, outcome.wall_time);
+    return outcome;
+  };
+  // The logger's own failure (the writer could not write), rethrown to be told like any other.
+  auto logger_failed = [&]() -> RunOutcome {
+    try {
+      std::rethrow_exception(logger.failure());
+    } catch (const std::exception& e) {
+      return failed(e);
+    }
+  };
+
   State shadow_state;
-  // The velocities after the two previous steps (the initial ones before step 1), for
-  // velocity_hf_rms from row 2 on.
-  Points v_previous = state.v, v_before_previous;
+  bool interrupted = false;
   try {
-    for (long k = 1; k <= outcome.steps_planned; ++k) {
+    for (long k = 1; k <= outcome.steps_planned && !logger.stopped(); ++k) {
       const bool shadowed = shadow && (k - 1) % shadow_every == 0;
       if (shadowed) shadow_state = state;
       const bool relaxing = k <= relax_frames;
@@ -220,13 +257,8 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       const auto t0 = Clock::now();
       const double cpu0 = thread_cpu_seconds();
       const StepReport report = solver->step(relaxing ? working : model, state, run.dt);
-      outcome.solver_cpu_time += thread_cpu_seconds() - cpu0;
+      const double cpu = thread_cpu_seconds() - cpu0;
       const double wall = seconds_since(t0);
-      outcome.solver_time += wall;
-      sample = measure(model, state, baseline);
-      if (k >= 2) sample.velocity_hf_rms = velocity_hf_rms(model, state.v, v_previous, v_before_previous);
-      v_before_previous.swap(v_previous);
-      v_previous = state.v;
       ShadowSample shadow_sample;
       if (shadowed) {
         const auto ts = Clock::now();
@@ -239,64 +271,32 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
         shadow_sample.residual_position = sr.residual_position;
         shadow_sample.iterations = static_cast<double>(sr.newton_iterations);
       }
-      writer.append({state.time, state.step, wall, &sample, &report, &shadow_sample});
-      outcome.steps_completed = k;
-      health.observe(k, state, sample);
-      if (const StopReasonInfo& why = stop_reason_info(report.stop); !why.trusted)
-        health.observe_untrusted_stop(k, state.time, why.name);
-      std::string why = explosion_reason(model, state, sample, run.limits, baseline);
-      if (why.empty()) why = non_finite(sample, baseline.elastic_defined);
-      if (!why.empty()) {
-        writer.append_frame(state.time, state.x, &state.v);
-        outcome.status = RunStatus::Exploded;
-        outcome.reason = why;
-        outcome.exploded_step = k;
-        outcome.final_sample = sample;
-        outcome.wall_time = seconds_since(t_start);
-        record_warnings();
-        writer.finish(RunStatus::Exploded, why, k, outcome.wall_time, k, state.time);
-        return outcome;
-      }
-      if (k % frame_every == 0 || k == outcome.steps_planned)
-        writer.append_frame(state.time, state.x, &state.v);
+      logger.log(k, state, report, wall, cpu, shadow_sample,
+                 k % frame_every == 0 || k == outcome.steps_planned);
       if (control.progress) control.progress(k, outcome.steps_planned);
       const bool stop = (control.stop != nullptr && control.stop->load()) || cancel_requested();
       if (stop && k < outcome.steps_planned) {
-        writer.append_frame(state.time, state.x, &state.v);
-        outcome.status = RunStatus::Incomplete;
-        outcome.reason = "interrupted after step " + std::to_string(k);
-        outcome.final_sample = sample;
-        outcome.wall_time = seconds_since(t_start);
-        record_warnings();
-        writer.finish(RunStatus::Incomplete, outcome.reason, k, outcome.wall_time);
-        return outcome;
+        interrupted = true;
+        break;
       }
     }
   } catch (const std::exception& e) {
-    // Interrupted inside a step (core/cancel.hpp): the file keeps the steps before it. Any
-    // failure while a cancellation is pending is the cancellation's doing.
-    if (dynamic_cast<const Cancelled*>(&e) != nullptr || cancel_requested()) {
-      outcome.status = RunStatus::Incomplete;
-      outcome.reason = "interrupted during step " + std::to_string(outcome.steps_completed + 1) +
-                       (dynamic_cast<const Cancelled*>(&e) != nullptr ? std::string(" (") + e.what() + ")" : "");
-      outcome.final_sample = sample;
-      outcome.wall_time = seconds_since(t_start);
-      record_warnings();
-      writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
-      return outcome;
-    }
-    outcome.status = RunStatus::Failed;
-    outcome.reason = e.what();
-    outcome.final_sample = sample;
-    outcome.wall_time = seconds_since(t_start);
-    record_warnings();
-    writer.finish(RunStatus::Failed, outcome.reason, outcome.steps_completed, outcome.wall_time);
+    logger.drain();
+    if (logger.exploded_step() >= 0) return exploded();
+    if (logger.failure()) return logger_failed();
+    return failed(e);
+  }
+  logger.drain();
+  if (logger.exploded_step() >= 0) return exploded();
+  if (logger.failure()) return logger_failed();
+  if (interrupted) {
+    // The run's thread stopped after the last step it handed over, which is logged now.
+    writer.append_frame(state.time, state.x, &state.v);
+    end_run(RunStatus::Incomplete, "interrupted after step " + std::to_string(logger.steps_logged()));
+    writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
     return outcome;
   }
-  outcome.status = RunStatus::Complete;
-  outcome.final_sample = sample;
-  outcome.wall_time = seconds_since(t_start);
-  record_warnings();
+  end_run(RunStatus::Complete, "");
   writer.finish(RunStatus::Complete, "", outcome.steps_completed, outcome.wall_time);
   return outcome;
 }

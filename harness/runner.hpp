@@ -3,6 +3,8 @@
 //   scene, solver, writer  <- config
 //   row 0: metrics of the initial state
 //   each step: solver.step(model, state, dt) -> metrics -> one row (-> a frame every k steps)
+//              (the metrics, rows, frames and checks on a thread of their own when the run has
+//              a core to spare: harness/step_logger.hpp; the file is the same either way)
 //              (the first relax.frames steps give the solver a relaxed copy of the model:
 //              harness/relax.hpp; the metrics always measure against the model itself)
 //              explosion check: NaN, Inf, speed or extent beyond the limits -> stop, "exploded"
@@ -19,6 +21,7 @@
 #include <vector>
 
 #include "config/config.hpp"
+#include "harness/step_logger.hpp"
 #include "metrics/metrics.hpp"
 #include "runfile/run_file.hpp"
 #include "solver_api/solver.hpp"
@@ -62,6 +65,9 @@ struct RunControl {
   bool force = false;
   // Told the plan of a run expected to take more than a minute, before it starts; may be empty.
   std::function<void(const std::string&)> notice;
+  // Where each step's metrics, row and frame are made (harness/step_logger.hpp): the file is the
+  // same either way; Auto gives them a thread of their own when the run has a core to spare.
+  StepLogging logging = StepLogging::Auto;
 };
 
 // solver.name is a solver of the catalogue (catalog/) and shadow.solver empty or one that can run
