@@ -37,6 +37,7 @@
 #include "config/config.hpp"
 #include "core/constraint_functions.hpp"
 #include "harness/runner.hpp"
+#include "metrics/metrics.hpp"
 #include "runfile/build_info.hpp"
 #include "runfile/frame_compressor.hpp"
 #include "solver_api/solver.hpp"
@@ -325,6 +326,27 @@ void BM_Harness(benchmark::State& bench, std::string scenario, std::vector<confi
 }
 
 // ---------------------------------------------------------------------------------------------
+// One sample of the metrics (metrics/metrics.hpp, measure) of a cloth in steady state, what the
+// run's logging does after every step: us_per_sample and ns_per_constraint in CPU time.
+void BM_Measure(benchmark::State& bench, std::string scene) {
+  const Warm& w = warm(scene);
+  const MetricsBaseline baseline = measure_baseline(w.scene.model, w.scene.initial);
+  double sink = 0.0;
+  long samples = 0;
+  const double c0 = thread_cpu_seconds();
+  for (auto _ : bench) {
+    const Sample s = measure(w.scene.model, w.state, baseline);
+    sink += s.constraint_error_rms;
+    ++samples;
+  }
+  const double cpu = thread_cpu_seconds() - c0;
+  benchmark::DoNotOptimize(sink);
+  bench.counters["us_per_sample"] = cpu / static_cast<double>(samples) * 1e6;
+  bench.counters["ns_per_constraint"] =
+      cpu / static_cast<double>(samples) / static_cast<double>(w.scene.model.constraints.size()) * 1e9;
+}
+
+// ---------------------------------------------------------------------------------------------
 // A frame's deflating (runfile/frame_compressor.hpp, the frame worker's whole work): the
 // positions and velocities of a cloth in steady state, by the writer's libdeflate at level 1
 // (`libdeflate`) and by zlib's compress2 at level 1 (`zlib`, what the writer used before
@@ -421,6 +443,9 @@ int main(int argc, char** argv) {
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime()
           ->Iterations(1);
+  for (const char* scene : {"cloth64", "cloth256"})
+    benchmark::RegisterBenchmark(("metrics/measure/" + std::string(scene)).c_str(), BM_Measure, std::string(scene))
+        ->Unit(benchmark::kMicrosecond);
   for (const char* scene : {"cloth64", "cloth256"})
     for (const bool zlib : {false, true})
       benchmark::RegisterBenchmark(("frame_deflate/" + std::string(scene) + (zlib ? "/zlib" : "/libdeflate")).c_str(),

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
 
 #include "core/constraint_stencils.hpp"
 #include "core/constraint_values_packed.hpp"
@@ -92,34 +95,70 @@ ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Po
 }
 
 namespace detail {
-void constraint_values_avx2(const Model& model, const Points& x, const double* X, const Constraint* cs,
-                            size_t m, double* C);
-void constraint_values_avx512(const Model& model, const Points& x, const double* X,
-                              const Constraint* cs, size_t m, double* C);
+void constraint_values_avx2(const Model& model, const Points& x, const double* X, const RunsView& v, double* C);
+void constraint_values_avx512(const Model& model, const Points& x, const double* X, const RunsView& v, double* C);
 }  // namespace detail
 
-void constraint_values(const Model& model, const Points& x, std::vector<double>& C) {
+ConstraintRuns constraint_runs(const Model& model) {
+  ConstraintRuns out;
+  const size_t m = model.constraints.size();
+  for (std::vector<std::int32_t>& p : out.particle) p.assign(m, -1);
+  out.rest.resize(m);
+  for (size_t j = 0; j < m; ++j) {
+    const Constraint& c = model.constraints[j];
+    if (out.runs.empty() || out.runs.back().kind != c.kind)
+      out.runs.push_back({c.kind, j, j});
+    ++out.runs.back().end;
+    out.rest[j] = c.rest;
+    if (!is_fem_kind(c.kind))
+      for (int i = 0; i < arity(c.kind); ++i) out.particle[static_cast<size_t>(i)][j] = c.particles[static_cast<size_t>(i)];
+  }
+  return out;
+}
+
+namespace {
+
+detail::RunsView view_of(const ConstraintRuns& runs, const Model& model) {
+  if (runs.rest.size() != model.constraints.size())
+    throw std::invalid_argument("constraint_values: the runs were built for a model of " +
+                                std::to_string(runs.rest.size()) + " constraints, this one has " +
+                                std::to_string(model.constraints.size()));
+  detail::RunsView v;
+  v.runs = runs.runs.data();
+  v.count = runs.runs.size();
+  for (int i = 0; i < 4; ++i) v.particle[i] = runs.particle[static_cast<size_t>(i)].data();
+  v.rest = runs.rest.data();
+  v.constraints = model.constraints.data();
+  return v;
+}
+
+}  // namespace
+
+void constraint_values(const ConstraintRuns& runs, const Model& model, const Points& x, std::vector<double>& C) {
   // The widest packs the processor has (core/constraint_values_packed.hpp): the same bits at
   // every width.
   enum class Width { Sse2, Avx2, Avx512 };
   static const Width width = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("fma") ? Width::Avx512
                              : __builtin_cpu_supports("avx2")  ? Width::Avx2
                                                                : Width::Sse2;
-  const size_t m = model.constraints.size();
-  C.resize(m);
-  const Constraint* cs = model.constraints.data();
+  const detail::RunsView v = view_of(runs, model);
+  C.resize(model.constraints.size());
   switch (width) {
-    case Width::Avx512: detail::constraint_values_avx512(model, x, x.data(), cs, m, C.data()); return;
-    case Width::Avx2: detail::constraint_values_avx2(model, x, x.data(), cs, m, C.data()); return;
+    case Width::Avx512: detail::constraint_values_avx512(model, x, x.data(), v, C.data()); return;
+    case Width::Avx2: detail::constraint_values_avx2(model, x, x.data(), v, C.data()); return;
     case Width::Sse2: break;
   }
-  detail::constraint_values_packed<Pack<double, 16>>(model, x, x.data(), cs, m, C.data());
+  detail::constraint_values_packed<Pack<double, 16>>(model, x, x.data(), v, C.data());
+}
+
+void constraint_values(const Model& model, const Points& x, std::vector<double>& C) {
+  constraint_values(constraint_runs(model), model, x, C);
 }
 
 void constraint_values_sse2(const Model& model, const Points& x, std::vector<double>& C) {
+  const ConstraintRuns runs = constraint_runs(model);
   C.resize(model.constraints.size());
-  detail::constraint_values_packed<Pack<double, 16>>(model, x, x.data(), model.constraints.data(),
-                                                     model.constraints.size(), C.data());
+  detail::constraint_values_packed<Pack<double, 16>>(model, x, x.data(), view_of(runs, model), C.data());
 }
 
 

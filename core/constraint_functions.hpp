@@ -8,6 +8,8 @@
 
 #include <array>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "core/model.hpp"
@@ -54,12 +56,31 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x);
 // reports the FEM kinds as C = 0, valid = false.)
 ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Points& x);
 
+// The model's constraints as constraint_values reads them: runs of one kind in model order, their
+// particles and rest values in arrays of their own (12 to 24 bytes a constraint where its record
+// has 64, most of them what the solvers need). Built once for a model (the metrics: once a run,
+// MetricsBaseline); a model whose constraints change needs new runs.
+struct ConstraintRuns {
+  struct Run {
+    ConstraintKind kind = ConstraintKind::Distance;
+    std::size_t begin = 0, end = 0;  // model constraints [begin, end)
+  };
+  std::vector<Run> runs;                              // in model order, every constraint in one
+  std::array<std::vector<std::int32_t>, 4> particle;  // particle[i][j]: particle i of constraint j,
+                                                      // -1 past its arity and for the FEM kinds
+  std::vector<double> rest;                           // rest[j]: constraint j's rest value
+};
+ConstraintRuns constraint_runs(const Model& model);
+
 // C of every model constraint at positions x (n x 3), in model order: the values
 // eval_constraint(model, c, x).C gives, bit for bit (the same stencils without their gradients,
 // a run of neighbouring constraints of one kind at a time in the lanes of a pack, as wide as the
 // processor has: 8 doubles with AVX-512, 4 with AVX2, 2 otherwise). For the metrics, which need
 // every C of every step and no gradient.
 void constraint_values(const Model& model, const Points& x, std::vector<double>& C);
+// The same from the model's runs (constraint_runs(model)), built once; std::invalid_argument
+// when they were built for a model with another number of constraints.
+void constraint_values(const ConstraintRuns& runs, const Model& model, const Points& x, std::vector<double>& C);
 // The same in 16-byte packs (SSE2) whatever the processor has: for the tests, which compare the
 // widths bit for bit.
 void constraint_values_sse2(const Model& model, const Points& x, std::vector<double>& C);

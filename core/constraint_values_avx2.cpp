@@ -5,9 +5,9 @@
 
 namespace pbdbench::detail {
 
-void constraint_values_avx2(const Model& model, const Points& x, const double* X,
-                          const Constraint* cs, size_t m, double* C) {
-  constraint_values_packed<Pack<double, 32>>(model, x, X, cs, m, C);
+void constraint_values_avx2(const Model& model, const Points& x, const double* X, const RunsView& v,
+                            double* C) {
+  constraint_values_packed<Pack<double, 32>>(model, x, X, v, C);
 }
 
 }  // namespace pbdbench::detail

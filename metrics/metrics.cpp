@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <memory>
 #include <limits>
 #include <sstream>
 #include <vector>
@@ -73,6 +75,43 @@ std::vector<int> constraints_touching_supports(const Model& model) {
   return out;
 }
 
+}  // namespace
+
+struct MetricsTable {
+  ConstraintRuns runs;            // constraint_values' view (core/constraint_functions.hpp)
+  // normalized_error's divisor: |rest| for distance and volume where it is not 0, else 1 (a
+  // division by 1 leaves |C|'s bits as they are).
+  std::vector<double> scale;
+  // 2 alpha where C^2 / (2 alpha) counts in the elastic energy (alpha > 0, not an FEM kind), else
+  // 0 (not counted).
+  std::vector<double> two_alpha;
+  std::vector<std::uint16_t> group;
+  std::vector<std::size_t> fem;   // the FEM-kind constraints: their error by constraint_error
+};
+
+namespace {
+
+std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
+  auto t = std::make_shared<MetricsTable>();
+  t->runs = constraint_runs(model);
+  const size_t m = model.constraints.size();
+  t->scale.resize(m);
+  t->two_alpha.resize(m);
+  t->group.resize(m);
+  for (size_t j = 0; j < m; ++j) {
+    const Constraint& c = model.constraints[j];
+    const bool fem = is_fem_kind(c.kind);
+    const bool relative = c.kind == ConstraintKind::Distance || c.kind == ConstraintKind::Volume;
+    t->scale[j] = relative && std::abs(c.rest) > 0.0 ? std::abs(c.rest) : 1.0;
+    // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it
+    // (adding both would count each element twice).
+    t->two_alpha[j] = c.compliance > 0.0 && !fem ? 2.0 * c.compliance : 0.0;
+    t->group[j] = c.group;
+    if (fem) t->fem.push_back(j);
+  }
+  return t;
+}
+
 double relative_drift(double now, double start) {
   return start != 0.0 ? (now - start) / std::abs(start) : kNaN;
 }
@@ -86,6 +125,7 @@ MetricsBaseline measure_baseline(const Model& model, const State& initial) {
   b.extent = max_distance_from_centroid(initial.x);
   b.support_constraints = constraints_touching_supports(model);
   b.supports_listed = true;
+  b.table = metrics_table(model);
   return b;
 }
 
@@ -98,37 +138,42 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   // Constraint error, overall and per group (constraint_error above: the FEM kinds by their
   // deviation from the rest shape).
   s.groups.assign(model.group_names.size(), GroupError{});
+  const size_t m = model.constraints.size();
+  std::shared_ptr<const MetricsTable> own;
+  const MetricsTable* t = baseline.table.get();
+  if (t == nullptr || t->group.size() != m) {
+    own = metrics_table(model);
+    t = own.get();
+  }
   // C of every constraint (core/constraint_functions.hpp), in a buffer kept by the thread: a
   // fresh one of a large model's size is a fresh mapping whose pages fault in at every sample.
   thread_local std::vector<double> values, errors, elastic_terms;
-  constraint_values(model, x, values);
-  // Two passes. The first computes each constraint's error and elastic energy, independent of
-  // one another (their divisions overlap); the second sums them in model order, the sums in
-  // registers (in memory they chain every constraint through a store and a load): the same
-  // operations in the same order as one constraint at a time. A constraint whose energy is not
-  // counted adds +0.0, which leaves the sum's bits as they are (it starts at +0.0 and never
-  // becomes -0.0). The group's sums are carried over a run of constraints of one group and
-  // stored when the group changes.
-  const size_t m = model.constraints.size();
+  constraint_values(t->runs, model, x, values);
+  // Two passes over the table's arrays. The first computes each constraint's error and elastic
+  // energy, independent of one another (their divisions overlap); the second sums them in model
+  // order, the sums in registers (in memory they chain every constraint through a store and a
+  // load): the same operations in the same order as one constraint at a time. A constraint whose
+  // energy is not counted adds +0.0, which leaves the sum's bits as they are (it starts at +0.0
+  // and never becomes -0.0). The group's sums are carried over a run of constraints of one group
+  // and stored when the group changes.
   errors.resize(m);
   elastic_terms.resize(m);
-  const Constraint* cs = model.constraints.data();
   const double* V = values.data();
+  const double* scale = t->scale.data();
+  const double* two_alpha = t->two_alpha.data();
+  const std::uint16_t* group_of = t->group.data();
   double* errs = errors.data();
   double* terms = elastic_terms.data();
   for (size_t j = 0; j < m; ++j) {
-    const Constraint& c = cs[j];
-    const bool fem = is_fem_kind(c.kind);
-    errs[j] = fem ? constraint_error(model, c, x) : normalized_error(c, V[j]);
-    // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it
-    // below (adding both would count each element twice).
-    terms[j] = c.compliance > 0.0 && !fem ? V[j] * V[j] / (2.0 * c.compliance) : 0.0;
+    errs[j] = std::abs(V[j]) / scale[j];  // normalized_error (core/constraint_functions.hpp)
+    terms[j] = two_alpha[j] > 0.0 ? V[j] * V[j] / two_alpha[j] : 0.0;
   }
+  for (const size_t j : t->fem) errs[j] = constraint_error(model, model.constraints[j], x);
   double sum_sq = 0.0, error_max = 0.0, elastic = 0.0;
   for (size_t j = 0; j < m;) {
-    const int group = cs[j].group;
-    GroupError g = s.groups[static_cast<size_t>(group)];
-    for (; j < m && cs[j].group == group; ++j) {
+    const std::uint16_t group = group_of[j];
+    GroupError g = s.groups[group];
+    for (; j < m && group_of[j] == group; ++j) {
       const double err = errs[j];
       g.max = std::max(g.max, err);
       g.rms += err * err;
@@ -141,7 +186,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
       }
       elastic += terms[j];
     }
-    s.groups[static_cast<size_t>(group)] = g;
+    s.groups[group] = g;
   }
   s.constraint_error_max = error_max;
   for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -10,6 +11,10 @@
 #include "core/state.hpp"
 
 namespace pbdbench {
+
+// What measure() reads of each constraint, in arrays of their own, built once by
+// measure_baseline (metrics/metrics.cpp).
+struct MetricsTable;
 
 // Quantities of the initial state that later samples are measured against.
 struct MetricsBaseline {
@@ -25,6 +30,10 @@ struct MetricsBaseline {
   // once by measure_baseline; when not listed, measure finds them in every sample.
   std::vector<int> support_constraints;
   bool supports_listed = false;
+  // The constraints as measure() reads them (their runs of one kind, particles, rest values,
+  // error scales, compliances and groups: a third of the bytes of the Constraint records), for
+  // this model; when absent, measure builds it for the sample.
+  std::shared_ptr<const MetricsTable> table;
 };
 
 MetricsBaseline measure_baseline(const Model& model, const State& initial);

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <stdexcept>
+
 #include <numbers>
 
 #include "core/fem.hpp"
@@ -227,6 +229,13 @@ TEST(ConstraintFunctions, ConstraintValuesAreEvalConstraintBitForBit) {
     }
   constraint_values(runs, x, values);
   constraint_values_sse2(runs, x, narrow);
+  // Runs built once give the same values; runs of another model are refused.
+  const ConstraintRuns built = constraint_runs(runs);
+  EXPECT_EQ(built.runs.size(), 18u);  // 9 runs of distance constraints, each followed by one bending
+  std::vector<double> from_built;
+  constraint_values(built, runs, x, from_built);
+  EXPECT_EQ(from_built, values);
+  EXPECT_THROW(constraint_values(built, m, x, from_built), std::invalid_argument);
   for (size_t j = 0; j < runs.constraints.size(); ++j) {
     EXPECT_EQ(values[j], eval_constraint(runs, runs.constraints[j], x).C) << "run constraint " << j;
     EXPECT_EQ(narrow[j], values[j]) << "run constraint " << j;
