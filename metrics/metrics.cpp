@@ -1,6 +1,7 @@
 #include "metrics/metrics.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -82,9 +83,11 @@ struct MetricsTable {
   // normalized_error's divisor: |rest| for distance and volume where it is not 0, else 1 (a
   // division by 1 leaves |C|'s bits as they are).
   std::vector<double> scale;
-  // 2 alpha where C^2 / (2 alpha) counts in the elastic energy (alpha > 0, not an FEM kind), else
-  // 0 (not counted).
+  // 2 alpha where C^2 / (2 alpha) counts in the elastic energy (alpha > 0, not an FEM kind),
+  // else 1; counted: all ones where it counts, else 0 (the term's bits and-ed with it: +0.0). A
+  // division by 1 and a mask instead of a branch around the division: the loop is vectorised.
   std::vector<double> two_alpha;
+  std::vector<std::uint64_t> counted;
   std::vector<std::uint16_t> group;
   std::vector<std::size_t> fem;   // the FEM-kind constraints: their error by constraint_error
 };
@@ -97,6 +100,7 @@ std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
   const size_t m = model.constraints.size();
   t->scale.resize(m);
   t->two_alpha.resize(m);
+  t->counted.resize(m);
   t->group.resize(m);
   for (size_t j = 0; j < m; ++j) {
     const Constraint& c = model.constraints[j];
@@ -105,7 +109,9 @@ std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
     t->scale[j] = relative && std::abs(c.rest) > 0.0 ? std::abs(c.rest) : 1.0;
     // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it
     // (adding both would count each element twice).
-    t->two_alpha[j] = c.compliance > 0.0 && !fem ? 2.0 * c.compliance : 0.0;
+    const bool counts = c.compliance > 0.0 && !fem;
+    t->two_alpha[j] = counts ? 2.0 * c.compliance : 1.0;
+    t->counted[j] = counts ? ~std::uint64_t{0} : 0;
     t->group[j] = c.group;
     if (fem) t->fem.push_back(j);
   }
@@ -149,8 +155,8 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   // fresh one of a large model's size is a fresh mapping whose pages fault in at every sample.
   thread_local std::vector<double> values, errors, elastic_terms;
   constraint_values(t->runs, model, x, values);
-  // Two passes over the table's arrays. The first computes each constraint's error and elastic
-  // energy, independent of one another (their divisions overlap); the second sums them in model
+  // Passes over the table's arrays. The first computes each constraint's error and elastic
+  // energy, independent of one another (their divisions overlap); the others sum them in model
   // order, the sums in registers (in memory they chain every constraint through a store and a
   // load): the same operations in the same order as one constraint at a time. A constraint whose
   // energy is not counted adds +0.0, which leaves the sum's bits as they are (it starts at +0.0
@@ -158,18 +164,23 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   // and stored when the group changes.
   errors.resize(m);
   elastic_terms.resize(m);
-  const double* V = values.data();
-  const double* scale = t->scale.data();
-  const double* two_alpha = t->two_alpha.data();
+  const double* __restrict V = values.data();
+  const double* __restrict scale = t->scale.data();
+  const double* __restrict two_alpha = t->two_alpha.data();
+  const std::uint64_t* __restrict counted = t->counted.data();
   const std::uint16_t* group_of = t->group.data();
-  double* errs = errors.data();
-  double* terms = elastic_terms.data();
+  double* __restrict errs = errors.data();
+  double* __restrict terms = elastic_terms.data();
   for (size_t j = 0; j < m; ++j) {
     errs[j] = std::abs(V[j]) / scale[j];  // normalized_error (core/constraint_functions.hpp)
-    terms[j] = two_alpha[j] > 0.0 ? V[j] * V[j] / two_alpha[j] : 0.0;
+    terms[j] = std::bit_cast<double>(std::bit_cast<std::uint64_t>(V[j] * V[j] / two_alpha[j]) & counted[j]);
   }
   for (const size_t j : t->fem) errs[j] = constraint_error(model, model.constraints[j], x);
-  double sum_sq = 0.0, error_max = 0.0, elastic = 0.0;
+  // The elastic energy by itself: one sum, in a register (beside the error's sums it was kept in
+  // memory, a store and a load between every two additions).
+  double elastic = 0.0;
+  for (size_t j = 0; j < m; ++j) elastic += terms[j];
+  double sum_sq = 0.0, error_max = 0.0;
   for (size_t j = 0; j < m;) {
     const std::uint16_t group = group_of[j];
     GroupError g = s.groups[group];
@@ -184,7 +195,6 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
         error_max = kNaN;
         g.max = kNaN;
       }
-      elastic += terms[j];
     }
     s.groups[group] = g;
   }
