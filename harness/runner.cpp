@@ -291,7 +291,11 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   if (logger.failure()) return logger_failed();
   if (interrupted) {
     // The run's thread stopped after the last step it handed over, which is logged now.
-    writer.append_frame(state.time, state.x, &state.v);
+    try {
+      writer.append_frame(state.time, state.x, &state.v);
+    } catch (const std::exception& e) {
+      return failed(e);
+    }
     end_run(RunStatus::Incomplete, "interrupted after step " + std::to_string(logger.steps_logged()));
     writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
     return outcome;
