@@ -169,11 +169,15 @@ TimingResult time_group(const Experiment& ex, const TimingSpec& timing, Tier tie
   const fs::path dir = runs_dir / ex.id / "timing" / timing.name;
   r.status.assign(n, "complete");
   r.seconds_per_step.clear();
+  // The steps are timed with their logging inline (harness/step_logger.hpp), as every timing
+  // record before session 26 was: no logger thread reads memory beside the step being timed.
+  RunControl control;
+  control.logging = StepLogging::Inline;
   for (int repeat = 0; repeat <= timing.repeats; ++repeat) {  // repeat 0: the warm-up
     std::vector<double> row(n, std::numeric_limits<double>::quiet_NaN());
     for (size_t j = 0; j < n; ++j) {
       const size_t k = (j + static_cast<size_t>(repeat)) % n;  // rotated order
-      const RunOutcome outcome = run_config(configs[k], dir / (timing.runs[k] + ".h5"));
+      const RunOutcome outcome = run_config(configs[k], dir / (timing.runs[k] + ".h5"), control);
       if (outcome.status != RunStatus::Complete && r.status[k] == "complete") r.status[k] = to_string(outcome.status);
       if (outcome.steps_completed > 0) row[k] = outcome.solver_time / static_cast<double>(outcome.steps_completed);
     }
