@@ -57,7 +57,7 @@ ConstraintEval eval_constraint(const Constraint& c, const Points& x);
 ConstraintEval eval_constraint(const Model& model, const Constraint& c, const Points& x);
 
 // The model's constraints as constraint_values reads them: runs of one kind in model order, their
-// particles and rest values in arrays of their own (12 to 24 bytes a constraint where its record
+// particles and rest values in arrays of their own (16 to 24 bytes read a constraint where its record
 // has 64, most of them what the solvers need). Built once for a model (the metrics: once a run,
 // MetricsBaseline); a model whose constraints change needs new runs.
 struct ConstraintRuns {

@@ -7,9 +7,9 @@ namespace pbdbench {
 
 namespace {
 
-// Auto: a thread when the model has at least this many particles and constraints together. Below
-// it a step's logging costs about as much as handing it over (a copy of the state and a wake-up
-// of the thread, some microseconds).
+// Auto: a thread when the model has at least this many particles and constraints together. A
+// judgement, not a measurement: below it a step's logging is small (tens of microseconds), of
+// the order of handing it over (a copy of the state and a wake-up of the thread).
 constexpr long kThreadedFrom = 2048;
 // Threaded: steps handed over and not yet logged, at most (each a copy of the state).
 constexpr size_t kSlots = 3;
@@ -79,16 +79,20 @@ void StepLogger::process(const StepRecord& r, const State& state) {
 
 void StepLogger::log(long k, const State& state, const StepReport& report, double wall, double cpu,
                      const ShadowSample& shadow, bool frame_due) {
-  if (!threaded_) {
-    if (stopped_) return;
-    // Inline: the caller's state itself, not a copy (its record's state stays empty).
-    StepRecord& r = inline_record_;
+  // Everything of the step but its state.
+  const auto fill = [&](StepRecord& r) {
     r.k = k;
     r.report = report;
     r.wall = wall;
     r.cpu = cpu;
     r.shadow = shadow;
     r.frame_due = frame_due;
+  };
+  if (!threaded_) {
+    if (stopped_) return;
+    // Inline: the caller's state itself, not a copy (its record's state stays empty).
+    StepRecord& r = inline_record_;
+    fill(r);
     try {
       process(r, state);
     } catch (...) {
@@ -107,17 +111,12 @@ void StepLogger::log(long k, const State& state, const StepReport& report, doubl
   }
   // The slot is the run thread's until it is counted as filled.
   StepRecord& r = slots_[slot];
-  r.k = k;
+  fill(r);
   r.state.time = state.time;
   r.state.step = state.step;
   r.state.x = state.x;
   r.state.v = state.v;
   r.state.lambda = state.lambda;
-  r.report = report;
-  r.wall = wall;
-  r.cpu = cpu;
-  r.shadow = shadow;
-  r.frame_due = frame_due;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++filled_;
