@@ -200,7 +200,9 @@ ConvergeResult run_converge(const config::Config& config, const ConvergeOptions&
             "violation only; global iterates with their own multipliers";
 
   // x*: global-cholmod to the configured tolerance. Its Newton object is kept for the recorded
-  // solve below, which then reuses the symbolic analysis as every step of a run does.
+  // solve below, which then reuses the symbolic analysis as every step of a run does; its
+  // numeric factorisation is forgotten first, so that the recorded solve factorises from x~ as
+  // the first step of a run does, and ends on x* bit for bit.
   SolverOptions cholmod_opts = base;
   cholmod_opts.name = "global-cholmod";
   GlobalNewton cholmod(cholmod_opts, GlobalLinearSolver::Cholmod);
@@ -301,6 +303,7 @@ ConvergeResult run_converge(const config::Config& config, const ConvergeOptions&
     if (c.ceres) {
       r = solve_global_ceres(problem, o, x, lambda);
     } else if (c.linear == GlobalLinearSolver::Cholmod) {
+      cholmod.forget_factorisation();
       r = cholmod.solve(problem, x, lambda);
     } else {
       GlobalNewton newton(o, c.linear);

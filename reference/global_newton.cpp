@@ -90,6 +90,10 @@ struct GlobalNewton::Impl {
   // it takes two (triu(P A P^T), then its transpose). The same matrix either way.
   Eigen::CholmodSupernodalLLT<SpMat, Eigen::Upper> cholmod;
   bool analysed = false;  // cholmod holds the analysis of A's pattern
+  // cholmod holds a factorisation of an earlier Newton matrix on this pattern, good enough to
+  // precondition the next solve (solver.global.factor_reuse; false: factorise the next one).
+  bool factor_usable = false;
+  Eigen::VectorXd pcg_r, pcg_z, pcg_p, pcg_ap;  // the preconditioned solve's vectors
 
   // The Newton matrix, both triangles, in a pattern kept between iterations and steps: the
   // energy's (fixed) and every row's blocks (zero when inactive), rebuilt only when the rows'
@@ -202,6 +206,7 @@ struct GlobalNewton::Impl {
         }
     have_pattern = true;
     analysed = false;
+    factor_usable = false;
     return true;
   }
 
@@ -250,6 +255,9 @@ struct GlobalNewton::Impl {
       cholmod.analyzePattern(A);
       analysed = true;
     }
+    if (options.global_factor_reuse && factor_usable && solve_with_last_factor(A, b, dq, result))
+      return true;
+    factor_usable = false;
     cholmod.setShift(0.0);
     cholmod.factorize(A);
     ++result.factorizations;
@@ -264,7 +272,59 @@ struct GlobalNewton::Impl {
     }
     dq = cholmod.solve(b);
     ++result.linear_solves;
+    factor_usable = cholmod.info() == Eigen::Success;
     return cholmod.info() == Eigen::Success && dq.allFinite();
+  }
+
+  // A dq = b by conjugate gradients preconditioned with the factorisation cholmod holds, M = L L^T
+  // of an earlier Newton matrix on the same pattern (Saad 2003, alg. 9.1, from dq = 0), to
+  // |b - A dq| <= reuse_tolerance |b|. A factorisation costs as much as tens of such iterations
+  // (a 64 x 64 cloth: 4.5e8 flops against two triangular solves through 1.9e6 nonzeros and a
+  // product with A), and the Newton matrices of consecutive iterations are close, so a few
+  // iterations replace it. A solve that needed more than reuse_iterations marks the factor stale
+  // (the next system is factorised); one not converged at 4 times that, or whose matrix showed a
+  // direction of non-positive curvature, returns false and this system is factorised. Every
+  // decision counts iterations only: the same inputs give the same bits. The Newton steps are
+  // those of a direct solve to the tolerance (the same Newton iterations and positions within
+  // 4e-15 m on the cloth and the beam, docs/performance.md).
+  bool solve_with_last_factor(const SpMat& A, const Eigen::VectorXd& b, Eigen::VectorXd& dq,
+                              GlobalResult& result) {
+    const int stale_after = options.global_reuse_iterations;
+    const int give_up = 4 * stale_after;
+    const double stop = options.global_reuse_tolerance * b.norm();
+    dq.setZero(b.size());
+    pcg_r = b;
+    if (!(pcg_r.norm() > stop)) {
+      ++result.linear_solves;
+      return true;
+    }
+    pcg_z = cholmod.solve(pcg_r);
+    if (cholmod.info() != Eigen::Success) return false;
+    pcg_p = pcg_z;
+    double rz = pcg_r.dot(pcg_z);
+    for (int it = 1; it <= give_up; ++it) {
+      pcg_ap.noalias() = A * pcg_p;  // A holds both triangles
+      const double pap = pcg_p.dot(pcg_ap);
+      if (!(pap > 0.0) || !(rz > 0.0)) {
+        result.inner_iterations += it;
+        return false;
+      }
+      const double a = rz / pap;
+      dq += a * pcg_p;
+      pcg_r -= a * pcg_ap;
+      if (pcg_r.norm() <= stop) {
+        result.inner_iterations += it;
+        ++result.linear_solves;
+        if (it > stale_after) factor_usable = false;
+        return dq.allFinite();  // false: this system is factorised
+      }
+      pcg_z = cholmod.solve(pcg_r);
+      const double rz_next = pcg_r.dot(pcg_z);
+      pcg_p = pcg_z + (rz_next / rz) * pcg_p;
+      rz = rz_next;
+    }
+    result.inner_iterations += give_up;
+    return false;
   }
 
   bool solve_cg_assembled(const SpMat& A, const Eigen::VectorXd& b, Eigen::VectorXd& dq,
@@ -356,6 +416,8 @@ GlobalNewton::GlobalNewton(const SolverOptions& options, GlobalLinearSolver line
 }
 
 GlobalNewton::~GlobalNewton() = default;
+
+void GlobalNewton::forget_factorisation() { impl_->factor_usable = false; }
 
 GlobalResult GlobalNewton::solve(const GlobalProblem& problem, Points& x,
                                  std::vector<double>& row_lambda) {

@@ -29,6 +29,16 @@
 // symbolic analysis is redone only when that pattern changes (contacts come and go); a matrix
 // that is not positive definite after the projections (it cannot be, up to rounding) is shifted
 // by 1e-12 times its largest diagonal entry and factorised again.
+//
+// The factorisation is reused (solver.global.factor_reuse, on by default): a Newton system is
+// solved by conjugate gradients preconditioned with the last factorisation, to a relative
+// residual of solver.global.reuse_tolerance (1e-12), and factorised only when that is slow (more
+// than solver.global.reuse_iterations iterations: the next system is factorised; no convergence
+// at 4 times that: this one is). Consecutive Newton matrices are close and a factorisation costs
+// tens of such iterations, so most systems take 3 to 5 iterations and no factorisation. The
+// Newton iterates are those of a direct solve to that tolerance: on the 64 x 64 cloth and the
+// cantilever beam the same Newton iterations, positions within 4e-15 m (docs/performance.md).
+// cholesky_factorizations and linear_iterations count both kinds of solve.
 #pragma once
 
 #include <cstdint>
@@ -56,6 +66,11 @@ class GlobalNewton {
   // guess, usually x~) and row_lambda (rows().size() multipliers, kg m, a warm start or zeros).
   // On return x and row_lambda hold the last iterate, converged or not (GlobalResult says).
   GlobalResult solve(const GlobalProblem& problem, Points& x, std::vector<double>& row_lambda);
+
+  // The next solve factorises its first Newton system instead of preconditioning with the last
+  // factorisation (the symbolic analysis is kept): a solve repeated from the same start then
+  // takes the same path, bit for bit (pbdbench converge records global-cholmod so).
+  void forget_factorisation();
 
  private:
   struct Impl;

@@ -169,7 +169,8 @@ const std::array kSeries = {
                "unsymmetric)",
                1, true, PBDBENCH_REPORT(lu_factorizations)},
     SeriesSpec{"linear_iterations", "1",
-               "global solvers: conjugate-gradient (global-cg) or Levenberg-Marquardt "
+               "global solvers: conjugate-gradient (global-cg; global-cholmod's solves "
+               "preconditioned with an earlier factorisation) or Levenberg-Marquardt "
                "(global-ceres) iterations in the step",
                1, true, PBDBENCH_REPORT(linear_iterations)},
     SeriesSpec{"residual_position", "m",

@@ -376,6 +376,16 @@ std::vector<OptionRow> make_rows() {
            "global-cg: relative residual at which each conjugate-gradient solve stops"));
   add(kGlobal, integer("solver.global.cg_max_iterations", &S::global_cg_max_iterations,
               within(1, 100000000), "global-cg: conjugate-gradient iterations per solve"));
+  add(kGlobal, boolean("solver.global.factor_reuse", &S::global_factor_reuse,
+              "global-cholmod: solve a Newton system by conjugate gradients preconditioned with "
+              "the last Cholesky factorisation while they converge within reuse_iterations "
+              "(false: factorise every Newton iteration)"));
+  add(kGlobal, real("solver.global.reuse_tolerance", &S::global_reuse_tolerance, "1", within_open(0, 1),
+           "global-cholmod with factor_reuse: relative residual at which such a solve stops"));
+  add(kGlobal, integer("solver.global.reuse_iterations", &S::global_reuse_iterations,
+              within(1, 10000),
+              "global-cholmod with factor_reuse: a solve needing more iterations factorises the "
+              "next Newton system; one not converged at 4 times this is factorised at once"));
   add(kGlobal, text("solver.global.ceres_method", &S::global_ceres_method,
            {"levenberg_marquardt", "dogleg"}, "global-ceres: the trust-region strategy"));
   return rows;

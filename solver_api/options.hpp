@@ -207,6 +207,17 @@ struct SolverOptions {
   double global_cg_tolerance = 1e-10;  // solver.global.cg_tolerance: relative residual of each
                                       // conjugate-gradient solve (global-cg)
   int global_cg_max_iterations = 100000;  // solver.global.cg_max_iterations (global-cg)
+  bool global_factor_reuse = true;    // solver.global.factor_reuse: global-cholmod solves a Newton
+                                      // system by conjugate gradients preconditioned with the
+                                      // last Cholesky factorisation (of an earlier Newton matrix)
+                                      // while that converges quickly; false: a factorisation
+                                      // every Newton iteration (reference/global_newton.hpp)
+  double global_reuse_tolerance = 1e-12;  // solver.global.reuse_tolerance: relative residual
+                                      // |b - A dx| <= this |b| of such a solve (global-cholmod)
+  int global_reuse_iterations = 5;    // solver.global.reuse_iterations: a solve that needs more
+                                      // iterations than this makes the next Newton system
+                                      // factorised; one not converged at 4 times this is
+                                      // factorised at once (global-cholmod)
   std::string global_ceres_method = "levenberg_marquardt";  // solver.global.ceres_method:
                                       // "levenberg_marquardt" or "dogleg" (global-ceres)
 

@@ -75,8 +75,9 @@ struct StepReport {
   long cholesky_factorizations = 0;  // of the setups: Cholesky factorisations (reduced systems)
   long lu_factorizations = 0;        // of the setups: LU factorisations where Cholesky failed or
                                      // the matrix was not symmetric (reduced systems)
-  long linear_iterations = 0;     // global solvers: conjugate-gradient iterations (global-cg),
-                                  // Levenberg-Marquardt iterations (global-ceres)
+  long linear_iterations = 0;     // global solvers: conjugate-gradient iterations (global-cg,
+                                  // and global-cholmod's solves preconditioned with an earlier
+                                  // factorisation), Levenberg-Marquardt iterations (global-ceres)
   double residual_position = std::numeric_limits<double>::quiet_NaN();  // global solvers: the
                                   // KKT residual of the last substep in position units, m
                                   // (reference/global_problem.hpp)

@@ -209,11 +209,12 @@ TEST(Schema, SolverBoundsAgreeWithValidate) {
   }
   // Both bounds of iterations, substeps, threads, jacobi_relaxation, pbd.velocity_damping, seed.damping,
   // seed.restitution, ref.rtol, ref.max_steps, ref.max_newton, global.max_iterations,
-  // global.regularization, global.cg_tolerance and global.cg_max_iterations; the minimum of
+  // global.regularization, global.cg_tolerance, global.cg_max_iterations, global.reuse_tolerance
+  // and global.reuse_iterations; the minimum of
   // contact_margin, seed.reference_dt, seed.fast_speed, ref.atol, ref.atol_velocity,
   // global.tolerance, force.contact_stiffness, force.contact_damping, ref.barrier_distance,
   // ref.barrier_stiffness and ref.friction_velocity.
-  EXPECT_EQ(bounds_checked, 39);
+  EXPECT_EQ(bounds_checked, 43);
 }
 
 TEST(Schema, SetSolverOptionRefusesOtherPaths) {

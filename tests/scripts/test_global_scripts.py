@@ -10,6 +10,7 @@ Environment (set by tests/scripts/CMakeLists.txt):
 """
 import contextlib
 import io
+import json
 import os
 import shutil
 import subprocess
@@ -179,6 +180,47 @@ class SummarizeGlobal(unittest.TestCase):
         os.makedirs(empty, exist_ok=True)
         with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
             self.assertEqual(summarize_global.main([empty]), 1)
+
+
+class TimeRuns(unittest.TestCase):
+    """scripts/time_runs.py: whole runs of two builds side by side (here one binary, with and
+    without an option), every run recorded, the table's ratios against the first build."""
+
+    def test_two_builds_rotated_and_tabled(self):
+        os.makedirs(TMP, exist_ok=True)
+        out = os.path.join(TMP, "timings.json")
+        if os.path.exists(out):
+            os.remove(out)
+        args = ["--reps", "2", "--solver", "global-cholmod", "--scene", "hanging_chain:0.05",
+                "--build", f"reuse={BIN}",
+                "--build", f"direct={BIN} --set solver.global.factor_reuse=false", "--out", out]
+        r = subprocess.run([PYTHON, os.path.join(SCRIPTS, "time_runs.py"), *args],
+                           capture_output=True, text=True, timeout=300)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(out) as f:
+            record = json.load(f)
+        self.assertEqual(len(record["runs"]), 4)
+        # The order rotates: the first repetition starts with the first build, the second with
+        # the second.
+        self.assertEqual([x["build"] for x in record["runs"]], ["reuse", "direct", "direct", "reuse"])
+        for x in record["runs"]:
+            self.assertGreater(x["cpu_s"], 0.0)
+            self.assertGreater(x["wall_s"], 0.0)
+        self.assertIn("| hanging_chain | reuse |", r.stdout)
+        self.assertIn("| hanging_chain | direct |", r.stdout)
+        # The baseline against itself is 1 in every repetition.
+        row = [line for line in r.stdout.splitlines() if line.startswith("| hanging_chain | reuse |")][0]
+        self.assertTrue(row.endswith("| 1.00 [1.00, 1.00] | 1.00 [1.00, 1.00] |"), row)
+        # An existing --out is not overwritten; a malformed --build is refused.
+        again = subprocess.run([PYTHON, os.path.join(SCRIPTS, "time_runs.py"), *args],
+                               capture_output=True, text=True, timeout=60)
+        self.assertEqual(again.returncode, 2)
+        self.assertIn("exists", again.stderr)
+        bad = subprocess.run([PYTHON, os.path.join(SCRIPTS, "time_runs.py"), "--solver", "x",
+                              "--scene", "a:1", "--build", "nolabel", "--out", out + ".2"],
+                             capture_output=True, text=True, timeout=60)
+        self.assertEqual(bad.returncode, 2)
+        self.assertIn("LABEL=BINARY", bad.stderr)
 
 
 if __name__ == "__main__":
