@@ -246,61 +246,97 @@ class Program final : public CompiledProjection {
     report.skipped += static_cast<int>(skipped);
   }
 
+  // Macklin et al. 2016, eqs. 8 and 9: g -= J^T lambda into g, and sum h_j^2, h_j = C_j +
+  // alpha~_j lambda_j, kind by kind in slot order. With threads (colored order), the items of
+  // one kind and one colour run as tasks of a stage, stage after stage in slot order: a colour's
+  // items share no moving particle, so every moving particle's g receives its terms in the order
+  // of the serial loop, and each h_j is kept and summed afterwards in slot order: the same bits
+  // at any thread count. The g of a particle that does not move is not written (the residual
+  // sums g over the moving particles only; items of one colour may share a pinned particle).
   double constraint_residuals(const Model& model, const Points& p, Points& g) const override {
-    using W = Pack<double, 16>;
-    residual_positions_.assign(static_cast<size_t>(kStride) * static_cast<size_t>(particles_), 0.0);
-    for (int i = 0; i < particles_; ++i)
+    residual_positions_.resize(static_cast<size_t>(kStride) * static_cast<size_t>(particles_));
+    for (int i = 0; i < particles_; ++i) {
       for (int a = 0; a < 3; ++a) residual_positions_[static_cast<size_t>(kStride * i + a)] = p(i, a);
-    const double* P = residual_positions_.data();
-    double h2 = 0.0;
-    for (int k = 0; k < kKinds; ++k) {
-      const KindBlock<T>& b = blocks_[static_cast<size_t>(k)];
-      if (b.count == 0) continue;
-      BlockView<double> v;
-      for (int i = 0; i < b.arity; ++i) v.particle[i] = b.particle[static_cast<size_t>(i)].data();
-      v.rest = b.rest_double.data();
-      for (int n = 0; n < 9; ++n) v.rest_inverse[n] = b.rest_inverse_double[static_cast<size_t>(n)].data();
-      const auto kind = static_cast<ConstraintKind>(k);
-      over_items<double, W>(0, b.count, [&](int s, auto ln) -> long {
-        using Ln = decltype(ln);
-        using L = typename Ln::L;
-        V3<L> x[4];
-        for (int i = 0; i < b.arity; ++i) x[i] = ln.position(P, v.particle[i] + s);
-        StencilEval<L> e;
-        switch (kind) {
-          case ConstraintKind::Distance: e = distance_stencil(x[0], x[1], ln.value(v.rest + s)); break;
-          case ConstraintKind::Volume: e = eval4<ConstraintKind::Volume>(v, s, x, ln); break;
-          case ConstraintKind::Bending: e = eval4<ConstraintKind::Bending>(v, s, x, ln); break;
-          case ConstraintKind::FemDeviatoric: e = eval4<ConstraintKind::FemDeviatoric>(v, s, x, ln); break;
-          case ConstraintKind::FemHydrostatic: e = eval4<ConstraintKind::FemHydrostatic>(v, s, x, ln); break;
-          case ConstraintKind::FemStrainTriangle:
-          case ConstraintKind::FemStrainTet: return 0L;  // never compiled
-        }
-        // Lane by lane, in slot order.
-        for (int lane = 0; lane < ln.n; ++lane) {
-          const auto at = [&](const L& value) -> double { return value[lane]; };
-          const size_t z = static_cast<size_t>(s + lane);
-          const double lam = static_cast<double>(b.lambda[z]);
-          const double hj = at(e.C) + b.compliance[z] / (h_ * h_) * lam;
-          h2 += hj * hj;
-          if (lam == 0.0) continue;
-          for (int i = 0; i < b.arity; ++i) {
-            const int q = b.particle[static_cast<size_t>(i)][z];
-            const V3<L>& gr = e.grad[static_cast<size_t>(i)];
-            g(q, 0) -= lam * at(gr.x);
-            g(q, 1) -= lam * at(gr.y);
-            g(q, 2) -= lam * at(gr.z);
-          }
-        }
-        return 0;
-      });
+      residual_positions_[static_cast<size_t>(kStride * i + 3)] = 0.0;
     }
+    for (int k = 0; k < kKinds; ++k)
+      residual_terms_[static_cast<size_t>(k)].resize(static_cast<size_t>(blocks_[static_cast<size_t>(k)].count));
+    if (parallel_ && order_ == ProjectionOrder::Colored) {
+      std::vector<Task> tasks;
+      std::vector<int> wait;
+      for (int k = 0; k < kKinds; ++k) {
+        for (const Group& grp : groups_) {
+          const int stage = static_cast<int>(tasks.size());
+          for (const Chunk& ch : grp.chunks)
+            if (static_cast<int>(ch.kind) == k) {
+              tasks.push_back({Task::ChunkOf, ch.begin, ch.end, k});
+              wait.push_back(stage);
+            }
+        }
+      }
+      run_staged(threads_, wait, [&](int t, int) {
+        const Task& task = tasks[static_cast<size_t>(t)];
+        residual_terms(task.c, task.a, task.b, g);
+      });
+    } else {
+      for (int k = 0; k < kKinds; ++k) residual_terms(k, 0, blocks_[static_cast<size_t>(k)].count, g);
+    }
+    double h2 = 0.0;
+    for (int k = 0; k < kKinds; ++k)
+      for (const double hj : residual_terms_[static_cast<size_t>(k)]) h2 += hj * hj;
     // Items never applied have lambda = 0: their C alone.
     for (int j : dead_items_) {
       const double C = eval_constraint(model, model.constraints[static_cast<size_t>(j)], p).C;
       h2 += C * C;
     }
     return h2;
+  }
+
+  // The items [begin, end) of kind k at residual_positions_: h_j into residual_terms_[k], and
+  // g -= lambda_j grad C_j for the moving particles, lane by lane in slot order.
+  void residual_terms(int k, int begin, int end, Points& g) const {
+    using W = Pack<double, 16>;
+    const KindBlock<T>& b = blocks_[static_cast<size_t>(k)];
+    if (begin >= end) return;
+    const double* P = residual_positions_.data();
+    double* terms = residual_terms_[static_cast<size_t>(k)].data();
+    BlockView<double> v;
+    for (int i = 0; i < b.arity; ++i) v.particle[i] = b.particle[static_cast<size_t>(i)].data();
+    v.rest = b.rest_double.data();
+    for (int n = 0; n < 9; ++n) v.rest_inverse[n] = b.rest_inverse_double[static_cast<size_t>(n)].data();
+    const auto kind = static_cast<ConstraintKind>(k);
+    over_items<double, W>(begin, end, [&](int s, auto ln) -> long {
+      using Ln = decltype(ln);
+      using L = typename Ln::L;
+      V3<L> x[4];
+      for (int i = 0; i < b.arity; ++i) x[i] = ln.position(P, v.particle[i] + s);
+      StencilEval<L> e;
+      switch (kind) {
+        case ConstraintKind::Distance: e = distance_stencil(x[0], x[1], ln.value(v.rest + s)); break;
+        case ConstraintKind::Volume: e = eval4<ConstraintKind::Volume>(v, s, x, ln); break;
+        case ConstraintKind::Bending: e = eval4<ConstraintKind::Bending>(v, s, x, ln); break;
+        case ConstraintKind::FemDeviatoric: e = eval4<ConstraintKind::FemDeviatoric>(v, s, x, ln); break;
+        case ConstraintKind::FemHydrostatic: e = eval4<ConstraintKind::FemHydrostatic>(v, s, x, ln); break;
+        case ConstraintKind::FemStrainTriangle:
+        case ConstraintKind::FemStrainTet: return 0L;  // never compiled
+      }
+      for (int lane = 0; lane < ln.n; ++lane) {
+        const auto at = [&](const L& value) -> double { return value[lane]; };
+        const size_t z = static_cast<size_t>(s + lane);
+        const double lam = static_cast<double>(b.lambda[z]);
+        terms[z] = at(e.C) + b.compliance[z] / (h_ * h_) * lam;
+        if (lam == 0.0) continue;
+        for (int i = 0; i < b.arity; ++i) {
+          const int q = b.particle[static_cast<size_t>(i)][z];
+          if (!moving_[static_cast<size_t>(q)]) continue;
+          const V3<L>& gr = e.grad[static_cast<size_t>(i)];
+          g(q, 0) -= lam * at(gr.x);
+          g(q, 1) -= lam * at(gr.y);
+          g(q, 2) -= lam * at(gr.z);
+        }
+      }
+      return 0;
+    });
   }
 
   void end_substep(Points& p, std::vector<double>* lambda, std::vector<double>& contact_lambda,
@@ -954,6 +990,7 @@ class Program final : public CompiledProjection {
   long dead_ = 0;  // model items never applied (skipped in every sweep)
   std::vector<int> dead_items_;  // their indices
   mutable std::vector<double> residual_positions_;  // (n x kStride) scratch of constraint_residuals
+  mutable std::array<std::vector<double>, kKinds> residual_terms_;  // [kind] (count): its h_j
   std::vector<char> moving_;  // (n) inv_mass != 0
   std::array<KindBlock<T>, kKinds> blocks_;
   std::array<BlockView<T>, kKinds> views_;  // of blocks_, taken once they are built
