@@ -62,6 +62,15 @@ void project_row_block(Mat12& H, int k) {
   throw std::logic_error("project_row_block: a row of " + std::to_string(k / 3) + " particles");
 }
 
+// solver.global.factor_reuse preconditions with an earlier factorisation only where a
+// factorisation costs at least this many iterations of the preconditioned solve (two triangular
+// solves through L and a product with A), in flops: the cost of an iteration that converges
+// slowly or not at all is then small against the factorisation it may save. CHOLMOD's analysis
+// gives 0.33 on balls_in_bowl and 0.67 on hanging_chain (a factorisation is cheaper than one
+// iteration: reuse made balls_in_bowl slower), 4.9 on cantilever_fem, 10.5 on cantilever_beam,
+// 12 on soft_cube_drop and 54 on the 64 x 64 hanging_cloth (docs/performance.md).
+constexpr double kReuseCostRatio = 2.0;
+
 // Debian's CHOLMOD is built with num_threads(4) on its OpenMP regions (CHOLMOD_OMP_NUM_THREADS),
 // whatever the machine: on a 2-core machine shared with other runs its four threads spin between
 // regions and take the cores from the step. The global solvers step on one thread (their BLAS,
@@ -93,6 +102,9 @@ struct GlobalNewton::Impl {
   // cholmod holds a factorisation of an earlier Newton matrix on this pattern, good enough to
   // precondition the next solve (solver.global.factor_reuse; false: factorise the next one).
   bool factor_usable = false;
+  // Whether reusing pays on this pattern: a factorisation costs at least kReuseCostRatio
+  // iterations of the preconditioned solve, in flops from CHOLMOD's analysis (set with it).
+  bool reuse_pays = false;
   Eigen::VectorXd pcg_r, pcg_z, pcg_p, pcg_ap;  // the preconditioned solve's vectors
 
   // The Newton matrix, both triangles, in a pattern kept between iterations and steps: the
@@ -254,8 +266,11 @@ struct GlobalNewton::Impl {
       cholmod.cholmod().method[2].ordering = CHOLMOD_NESDIS;
       cholmod.analyzePattern(A);
       analysed = true;
+      const cholmod_common& c = cholmod.cholmod();
+      reuse_pays = c.fl >= kReuseCostRatio * (4.0 * c.lnz + 2.0 * static_cast<double>(A.nonZeros()));
     }
-    if (options.global_factor_reuse && factor_usable && solve_with_last_factor(A, b, dq, result))
+    if (options.global_factor_reuse && reuse_pays && factor_usable &&
+        solve_with_last_factor(A, b, dq, result))
       return true;
     factor_usable = false;
     cholmod.setShift(0.0);
@@ -278,10 +293,10 @@ struct GlobalNewton::Impl {
 
   // A dq = b by conjugate gradients preconditioned with the factorisation cholmod holds, M = L L^T
   // of an earlier Newton matrix on the same pattern (Saad 2003, alg. 9.1, from dq = 0), to
-  // |b - A dq| <= reuse_tolerance |b|. A factorisation costs as much as tens of such iterations
-  // (a 64 x 64 cloth: 4.5e8 flops against two triangular solves through 1.9e6 nonzeros and a
-  // product with A), and the Newton matrices of consecutive iterations are close, so a few
-  // iterations replace it. A solve that needed more than reuse_iterations marks the factor stale
+  // |b - A dq| <= reuse_tolerance |b|. On a large pattern a factorisation costs as much as tens
+  // of such iterations (a 64 x 64 cloth: 4.5e8 flops against two triangular solves through
+  // 1.9e6 nonzeros and a product with A), and the Newton matrices of consecutive iterations are
+  // close, so a few iterations replace it. A solve that needed more than reuse_iterations marks the factor stale
   // (the next system is factorised); one not converged at 4 times that, or whose matrix showed a
   // direction of non-positive curvature, returns false and this system is factorised. Every
   // decision counts iterations only: the same inputs give the same bits. The Newton steps are

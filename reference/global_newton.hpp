@@ -32,14 +32,18 @@
 //
 // The factorisation is reused (solver.global.factor_reuse, on by default): a Newton system is
 // solved by conjugate gradients preconditioned with the last factorisation, to a relative
-// residual of solver.global.reuse_tolerance (1e-12), and factorised only when that is slow (more
-// than solver.global.reuse_iterations iterations: the next system is factorised; no convergence
-// at 4 times that: this one is). Consecutive Newton matrices are close and a factorisation costs
-// tens of such iterations, so most systems take a few iterations and no factorisation (on average
-// 6 on the cloth, 4 on the beam, the solves that ended in a factorisation included). The
-// Newton iterates are those of a direct solve to that tolerance: on the 64 x 64 cloth and the
-// cantilever beam the same Newton iterations, positions within 4e-15 m (docs/performance.md).
-// cholesky_factorizations and linear_iterations count both kinds of solve.
+// residual of solver.global.reuse_tolerance (1e-14), and factorised only when that is slow (more
+// than solver.global.reuse_iterations = 6 iterations: the next system is factorised; no
+// convergence at 4 times that: this one is), and only on a pattern where a factorisation costs at
+// least two such iterations in flops (CHOLMOD's analysis; not on balls_in_bowl or hanging_chain,
+// where it costs less than one). Consecutive Newton matrices are close and on a large pattern a
+// factorisation costs tens of such iterations, so most systems take a few iterations and no
+// factorisation. The Newton iterates are those of a direct solve to that tolerance: on the
+// 64 x 64 cloth, the cantilever beam, cantilever_fem and soft_cube_drop the same Newton
+// iterations, positions within 4e-14 m (docs/performance.md). At 1e-12 a pile of contacts
+// (balls_in_bowl, chaotic) left the direct solve's path within 3 steps and hit the iteration
+// limit once. cholesky_factorizations and linear_iterations count both kinds of solve.
+
 #pragma once
 
 #include <cstdint>

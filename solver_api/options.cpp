@@ -378,8 +378,9 @@ std::vector<OptionRow> make_rows() {
               within(1, 100000000), "global-cg: conjugate-gradient iterations per solve"));
   add(kGlobal, boolean("solver.global.factor_reuse", &S::global_factor_reuse,
               "global-cholmod: solve a Newton system by conjugate gradients preconditioned with "
-              "the last Cholesky factorisation while they converge within reuse_iterations "
-              "(false: factorise every Newton iteration)"));
+              "the last Cholesky factorisation while they converge within reuse_iterations, "
+              "where a factorisation costs at least two of their iterations (false: factorise "
+              "every Newton iteration)"));
   add(kGlobal, real("solver.global.reuse_tolerance", &S::global_reuse_tolerance, "1", within_open(0, 1),
            "global-cholmod with factor_reuse: relative residual at which such a solve stops"));
   add(kGlobal, integer("solver.global.reuse_iterations", &S::global_reuse_iterations,

@@ -210,11 +210,12 @@ struct SolverOptions {
   bool global_factor_reuse = true;    // solver.global.factor_reuse: global-cholmod solves a Newton
                                       // system by conjugate gradients preconditioned with the
                                       // last Cholesky factorisation (of an earlier Newton matrix)
-                                      // while that converges quickly; false: a factorisation
+                                      // while that converges quickly, where a factorisation costs
+                                      // at least two of its iterations; false: a factorisation
                                       // every Newton iteration (reference/global_newton.hpp)
-  double global_reuse_tolerance = 1e-12;  // solver.global.reuse_tolerance: relative residual
+  double global_reuse_tolerance = 1e-14;  // solver.global.reuse_tolerance: relative residual
                                       // |b - A dx| <= this |b| of such a solve (global-cholmod)
-  int global_reuse_iterations = 5;    // solver.global.reuse_iterations: a solve that needs more
+  int global_reuse_iterations = 6;    // solver.global.reuse_iterations: a solve that needs more
                                       // iterations than this makes the next Newton system
                                       // factorised; one not converged at 4 times this is
                                       // factorised at once (global-cholmod)
