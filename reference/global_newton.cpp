@@ -296,12 +296,12 @@ struct GlobalNewton::Impl {
   // |b - A dq| <= reuse_tolerance |b|. On a large pattern a factorisation costs as much as tens
   // of such iterations (a 64 x 64 cloth: 4.5e8 flops against two triangular solves through
   // 1.9e6 nonzeros and a product with A), and the Newton matrices of consecutive iterations are
-  // close, so a few iterations replace it. A solve that needed more than reuse_iterations marks the factor stale
-  // (the next system is factorised); one not converged at 4 times that, or whose matrix showed a
-  // direction of non-positive curvature, returns false and this system is factorised. Every
-  // decision counts iterations only: the same inputs give the same bits. The Newton steps are
-  // those of a direct solve to the tolerance (the same Newton iterations and positions within
-  // 4e-15 m on the cloth and the beam, docs/performance.md).
+  // close, so a few iterations replace it. A solve that needed more than reuse_iterations marks
+  // the factor stale (the next system is factorised); one not converged at 4 times that, one
+  // whose matrix showed a direction of non-positive curvature, or one that is not finite returns
+  // false and this system is factorised. Every decision counts iterations only: the same inputs
+  // give the same bits. The Newton steps are those of a direct solve to the tolerance (the same
+  // Newton iterations, positions within 4e-14 m on the scenes of docs/performance.md).
   bool solve_with_last_factor(const SpMat& A, const Eigen::VectorXd& b, Eigen::VectorXd& dq,
                               GlobalResult& result) {
     const int stale_after = options.global_reuse_iterations;
@@ -329,9 +329,10 @@ struct GlobalNewton::Impl {
       pcg_r -= a * pcg_ap;
       if (pcg_r.norm() <= stop) {
         result.inner_iterations += it;
+        if (!dq.allFinite()) return false;
         ++result.linear_solves;
         if (it > stale_after) factor_usable = false;
-        return dq.allFinite();  // false: this system is factorised
+        return true;
       }
       pcg_z = cholmod.solve(pcg_r);
       const double rz_next = pcg_r.dot(pcg_z);
