@@ -66,9 +66,10 @@ void project_row_block(Mat12& H, int k) {
 // factorisation costs at least this many iterations of the preconditioned solve (two triangular
 // solves through L and a product with A), in flops: the cost of an iteration that converges
 // slowly or not at all is then small against the factorisation it may save. CHOLMOD's analysis
-// gives 0.33 on balls_in_bowl and 0.67 on hanging_chain (a factorisation is cheaper than one
-// iteration: reuse made balls_in_bowl slower), 4.9 on cantilever_fem, 10.5 on cantilever_beam,
-// 12 on soft_cube_drop and 54 on the 64 x 64 hanging_cloth (docs/performance.md).
+// gave (read once in a scratch build) 0.33 on balls_in_bowl and 0.67 on hanging_chain (a
+// factorisation is cheaper than one iteration: reuse made balls_in_bowl slower), 4.9 on
+// cantilever_fem, 10.5 on cantilever_beam, 12 on soft_cube_drop and 54 on the 64 x 64
+// hanging_cloth (docs/performance.md).
 constexpr double kReuseCostRatio = 2.0;
 
 // Debian's CHOLMOD is built with num_threads(4) on its OpenMP regions (CHOLMOD_OMP_NUM_THREADS),
