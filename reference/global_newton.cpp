@@ -65,11 +65,11 @@ void project_row_block(Mat12& H, int k) {
 // solver.global.factor_reuse preconditions with an earlier factorisation only where a
 // factorisation costs at least this many iterations of the preconditioned solve (two triangular
 // solves through L and a product with A), in flops: the cost of an iteration that converges
-// slowly or not at all is then small against the factorisation it may save. CHOLMOD's analysis
-// gave (read once in a scratch build) 0.33 on balls_in_bowl and 0.67 on hanging_chain (a
-// factorisation is cheaper than one iteration: reuse made balls_in_bowl slower), 4.9 on
-// cantilever_fem, 10.5 on cantilever_beam, 12 on soft_cube_drop and 54 on the 64 x 64
-// hanging_cloth (docs/performance.md).
+// slowly or not at all is then small against the factorisation it may save. The ratio is every
+// step's factor_cost_ratio series: 0.34 to 1.91 on balls_in_bowl (with its contacts) and 0.67 on
+// hanging_chain (a factorisation is about as cheap as one iteration: reuse made balls_in_bowl
+// slower), 4.9 on cantilever_fem, 10.5 on cantilever_beam, 12 on soft_cube_drop and 54 on the
+// 64 x 64 hanging_cloth (docs/performance.md).
 constexpr double kReuseCostRatio = 2.0;
 
 // Debian's CHOLMOD is built with num_threads(4) on its OpenMP regions (CHOLMOD_OMP_NUM_THREADS),
@@ -103,8 +103,11 @@ struct GlobalNewton::Impl {
   // cholmod holds a factorisation of an earlier Newton matrix on this pattern, good enough to
   // precondition the next solve (solver.global.factor_reuse; false: factorise the next one).
   bool factor_usable = false;
-  // Whether reusing pays on this pattern: a factorisation costs at least kReuseCostRatio
-  // iterations of the preconditioned solve, in flops from CHOLMOD's analysis (set with it).
+  // The flops of a factorisation over those of one iteration of the preconditioned solve
+  // (4 nnz(L) for the two triangular solves, 2 nnz(A) for the product), from CHOLMOD's analysis
+  // of this pattern (set with it; reported in the step's factor_cost_ratio). Reusing pays where
+  // it is at least kReuseCostRatio.
+  double cost_ratio = std::numeric_limits<double>::quiet_NaN();
   bool reuse_pays = false;
   Eigen::VectorXd pcg_r, pcg_z, pcg_p, pcg_ap;  // the preconditioned solve's vectors
 
@@ -268,8 +271,10 @@ struct GlobalNewton::Impl {
       cholmod.analyzePattern(A);
       analysed = true;
       const cholmod_common& c = cholmod.cholmod();
-      reuse_pays = c.fl >= kReuseCostRatio * (4.0 * c.lnz + 2.0 * static_cast<double>(A.nonZeros()));
+      cost_ratio = c.fl / (4.0 * c.lnz + 2.0 * static_cast<double>(A.nonZeros()));
+      reuse_pays = cost_ratio >= kReuseCostRatio;
     }
+    result.factor_cost_ratio = cost_ratio;
     if (options.global_factor_reuse && reuse_pays && factor_usable &&
         solve_with_last_factor(A, b, dq, result))
       return true;

@@ -86,6 +86,9 @@ struct GlobalResult {
   double residual_h = 0.0;         // |h|_2 over the rows (C of rigid rows; of contacts the
                                    // violation max(-C, 0), or C where lambda > 0), units of C
   double residual = 0.0;           // Residuals::position at the solution, m
+  double factor_cost_ratio = std::numeric_limits<double>::quiet_NaN();  // global-cholmod: a
+                                   // factorisation's flops over one preconditioned CG
+                                   // iteration's, from CHOLMOD's analysis (NaN otherwise)
   std::vector<IterationRecord> history;  // the starting point and every outer iteration
 };
 

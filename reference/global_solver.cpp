@@ -76,6 +76,7 @@ class GlobalSolver final : public Solver {
       report.residual_g = r.residual_g;
       report.residual_h = r.residual_h;
       report.residual_position = r.residual;
+      report.factor_cost_ratio = r.factor_cost_ratio;
       timer.lap(report.time_project);
 
       contact_lambda_.assign(row_lambda_.begin() + static_cast<std::ptrdiff_t>(rigid),

@@ -173,6 +173,12 @@ const std::array kSeries = {
                "preconditioned with an earlier factorisation) or Levenberg-Marquardt "
                "(global-ceres) iterations in the step",
                1, true, PBDBENCH_REPORT(linear_iterations)},
+    SeriesSpec{"factor_cost_ratio", "1",
+               "global-cholmod: the flops of a Cholesky factorisation of the step's Newton matrix "
+               "over those of one conjugate-gradient iteration preconditioned with it (4 nnz(L) "
+               "+ 2 nnz(A)), from CHOLMOD's analysis; the factorisation is reused across Newton "
+               "iterations where this is at least 2 (NaN otherwise)",
+               1, true, PBDBENCH_REPORT(factor_cost_ratio)},
     SeriesSpec{"residual_position", "m",
                "global solvers: the KKT residual of the step's last substep in position units; "
                "ref-be with contact: the largest final Newton step of its substeps (NaN "

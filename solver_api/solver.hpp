@@ -75,6 +75,10 @@ struct StepReport {
   long cholesky_factorizations = 0;  // of the setups: Cholesky factorisations (reduced systems)
   long lu_factorizations = 0;        // of the setups: LU factorisations where Cholesky failed or
                                      // the matrix was not symmetric (reduced systems)
+  double factor_cost_ratio = std::numeric_limits<double>::quiet_NaN();  // global-cholmod: the
+                                  // flops of a factorisation over those of one CG iteration
+                                  // preconditioned with it, CHOLMOD's analysis; the factorisation
+                                  // is reused across Newton iterations where it is >= 2
   long linear_iterations = 0;     // global solvers: conjugate-gradient iterations (global-cg,
                                   // and global-cholmod's solves preconditioned with an earlier
                                   // factorisation), Levenberg-Marquardt iterations (global-ceres)

@@ -171,6 +171,10 @@ TEST(GlobalSolvers, CholmodReusesItsFactorisationAndKeepsTheNewtonSteps) {
     EXPECT_EQ(direct[k].linear_iterations, 0);
     EXPECT_EQ(failing[k].newton_iterations, direct[k].newton_iterations);
     EXPECT_EQ(failing[k].cholesky_factorizations, direct[k].cholesky_factorizations);
+    // The pattern's cost ratio is reported whether or not the reuse is on, and it is what
+    // lets the reuse be tried here.
+    EXPECT_GE(reused[k].factor_cost_ratio, 2.0);
+    EXPECT_EQ(direct[k].factor_cost_ratio, reused[k].factor_cost_ratio);
     newton += direct[k].newton_iterations;
     factorised_direct += direct[k].cholesky_factorizations;
     factorised_reused += reused[k].cholesky_factorizations;
@@ -198,9 +202,16 @@ TEST(GlobalSolvers, CholmodDoesNotReuseWhereAFactorisationIsCheap) {
   for (const StepReport& r : reports) {
     EXPECT_EQ(r.cholesky_factorizations, r.newton_iterations);
     EXPECT_EQ(r.linear_iterations, 0);
+    EXPECT_GT(r.factor_cost_ratio, 0.0);  // reported, and below the rule's 2
+    EXPECT_LT(r.factor_cost_ratio, 2.0);
     newton += r.newton_iterations;
   }
   EXPECT_GT(newton, 10);
+  // No factorisation, no ratio: NaN for global-cg.
+  std::vector<StepReport> cg;
+  run(s.model, s.initial, "global-cg", 1, 1.0 / 60.0, &cg);
+  ASSERT_EQ(cg.size(), 1u);
+  EXPECT_TRUE(std::isnan(cg[0].factor_cost_ratio));
 }
 
 TEST(GlobalSolvers, RefuseWhatTheGlobalProblemCannotHold) {

@@ -153,6 +153,7 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
   r.residual_position = 53.5;
   r.line_search_cuts = 69;
   r.barrier_energy = 70.5;
+  r.factor_cost_ratio = 71.5;
   ShadowSample sh;
   sh.gap = 54.5;
   sh.gap_rms = 55.5;
@@ -191,7 +192,7 @@ TEST(runfile_series, AccessorsReadTheirOwnField) {
       {"shadow_iterations", {61}}, {"shadow_time", {62.5}}, {"shadow_cost_ratio", {63.5}},
       {"height_min", {64.5}}, {"sunk_count", {65}}, {"sunk_depth", {66.5}},
       {"velocity_hf_rms", {67.5}}, {"shadow_force_error", {68.5}}, {"time_residual", {69.5}},
-      {"line_search_cuts", {69}}, {"barrier_energy", {70.5}}};
+      {"line_search_cuts", {69}}, {"barrier_energy", {70.5}}, {"factor_cost_ratio", {71.5}}};
   for (const SeriesSpec& spec : series_table()) {
     const auto it = expected.find(std::string(spec.name));
     ASSERT_NE(it, expected.end()) << spec.name << " is not covered by this test: add it";
