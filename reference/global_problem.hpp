@@ -34,6 +34,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
