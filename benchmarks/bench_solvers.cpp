@@ -399,6 +399,11 @@ int main(int argc, char** argv) {
       for (ProjectionOrder order : orders)
         for (Precision precision : {Precision::Double, Precision::Float})
           for (int threads : {1, 2}) cases.push_back({scene, solver, order, precision, threads});
+  // solver.threads = 0, the default: each sweep on the cores or on one, whichever the run's
+  // timings favour (solvers/sweep_threads.hpp), beside t1 and t2 on the large cloths.
+  for (const char* scene : {"cloth256_distance", "cloth256"})
+    for (const char* solver : {"pbd", "xpbd"})
+      cases.push_back({scene, solver, ProjectionOrder::Colored, Precision::Double, 0});
   for (const char* scene : {"chain", "beam"})
     for (const char* solver : {"pbd", "xpbd"})
       for (ProjectionOrder order : orders)

@@ -199,8 +199,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   logging.health = &health;
   logging.initial_sample = &sample;
   logging.initial_velocities = &state.v;
-  const bool threaded = step_logging_threaded(control.logging, available_cores(),
-                                              resolve_threads(solver_opts.threads), model);
+  const bool threaded = step_logging_threaded(control.logging, available_cores(), solver->threads(), model);
   StepLogger logger(logging, threaded);
   // The run ends (every way out waits for the logger first, then writes the file's end).
   auto end_run = [&](RunStatus status, const std::string& reason) -> void {

@@ -38,9 +38,22 @@ double enclosed_volume(const Model& model, const Points& x) {
 double max_distance_from_centroid(const Points& x) {
   if (x.rows() == 0) return 0.0;
   const Vec3 c = x.colwise().mean().transpose();
-  double d = 0.0;
-  for (Eigen::Index i = 0; i < x.rows(); ++i) d = std::max(d, (Vec3(x.row(i)) - c).norm());
-  return d;
+  // The largest squared distance, then its root: the root is correctly rounded and never
+  // decreasing, so this is the largest of the roots, bit for bit, for one root instead of n.
+  double d2 = 0.0;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) d2 = std::max(d2, (Vec3(x.row(i)) - c).squaredNorm());
+  return std::sqrt(d2);
+}
+
+// Every coordinate finite, over the rows' contiguous storage: Eigen's allFinite() of a row-major
+// n x 3 matrix went column by column through strided loads (a sixth of measure's own time on the
+// 64 x 64 cloth, docs/performance.md, session 29).
+bool all_finite(const Points& p) {
+  const double* d = p.data();
+  const size_t count = static_cast<size_t>(p.size());
+  unsigned bad = 0;
+  for (size_t k = 0; k < count; ++k) bad |= !(std::abs(d[k]) <= std::numeric_limits<double>::max());
+  return bad == 0;
 }
 
 }  // namespace
@@ -89,6 +102,12 @@ struct MetricsTable {
   std::vector<double> two_alpha;
   std::vector<std::uint64_t> counted;
   std::vector<std::uint16_t> group;
+  // The constraints in runs of one group, in model order: measure sums each run in lanes.
+  struct GroupRun {
+    std::size_t begin = 0, end = 0;
+    std::uint16_t group = 0;
+  };
+  std::vector<GroupRun> group_runs;
   std::vector<std::size_t> fem;   // the FEM-kind constraints: their error by constraint_error
 };
 
@@ -113,6 +132,8 @@ std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
     t->two_alpha[j] = counts ? 2.0 * c.compliance : 1.0;
     t->counted[j] = counts ? ~std::uint64_t{0} : 0;
     t->group[j] = c.group;
+    if (j == 0 || c.group != t->group[j - 1]) t->group_runs.push_back({j, j, c.group});
+    t->group_runs.back().end = j + 1;
     if (fem) t->fem.push_back(j);
   }
   return t;
@@ -120,6 +141,40 @@ std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
 
 double relative_drift(double now, double start) {
   return start != 0.0 ? (now - start) / std::abs(start) : kNaN;
+}
+
+// measure's pass over the constraints (what it computes and in which order: there), in a clone
+// for AVX2 and one for any x86-64, chosen when the program loads (GCC's target_clones): the same
+// IEEE operations in the same order in both (no FMA: the build has -ffp-contract=off), so the
+// same bits, four lanes to a register instead of two.
+constexpr size_t kLanes = 8;
+double tree(const double* a) { return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])); }
+
+// The constraints [begin, end) of one group into the lanes: sq[k] and mx[k] (from 0) get the
+// sum of squares and the largest of the errors |C| / scale of the constraints begin + k,
+// begin + k + kLanes, ...; el[k] (carried over the runs) their elastic terms C^2 / (2 alpha),
+// and-ed with `counted`. The largest as std::max: a NaN is passed over.
+__attribute__((target_clones("avx2", "default")))
+void lane_sums(const double* __restrict V, const double* __restrict scale, const double* __restrict two_alpha,
+               const std::uint64_t* __restrict counted, size_t begin, size_t end, double* __restrict sq_out,
+               double* __restrict mx_out, double* __restrict el_inout) {
+  double sq[kLanes] = {}, mx[kLanes] = {}, el[kLanes];
+  for (size_t k = 0; k < kLanes; ++k) el[k] = el_inout[k];
+  const auto add = [&](size_t k, size_t j) {
+    const double err = std::abs(V[j]) / scale[j];  // normalized_error (core/constraint_functions.hpp)
+    sq[k] += err * err;
+    mx[k] = mx[k] < err ? err : mx[k];
+    el[k] += std::bit_cast<double>(std::bit_cast<std::uint64_t>(V[j] * V[j] / two_alpha[j]) & counted[j]);
+  };
+  size_t j = begin;
+  for (; j + kLanes <= end; j += kLanes)
+    for (size_t k = 0; k < kLanes; ++k) add(k, j + k);
+  for (size_t k = 0; j < end; ++j, ++k) add(k, j);
+  for (size_t k = 0; k < kLanes; ++k) {
+    sq_out[k] = sq[k];
+    mx_out[k] = mx[k];
+    el_inout[k] = el[k];
+  }
 }
 
 }  // namespace
@@ -153,51 +208,39 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   }
   // C of every constraint (core/constraint_functions.hpp), in a buffer kept by the thread: a
   // fresh one of a large model's size is a fresh mapping whose pages fault in at every sample.
-  thread_local std::vector<double> values, errors, elastic_terms;
+  thread_local std::vector<double> values;
   constraint_values(t->runs, model, x, values);
-  // Passes over the table's arrays. The first computes each constraint's error and elastic
-  // energy, independent of one another (their divisions overlap); the others sum them in model
-  // order, the sums in registers (in memory they chain every constraint through a store and a
-  // load): the same operations in the same order as one constraint at a time. A constraint whose
-  // energy is not counted adds +0.0, which leaves the sum's bits as they are (it starts at +0.0
-  // and never becomes -0.0). The group's sums are carried over a run of constraints of one group
-  // and stored when the group changes.
-  errors.resize(m);
-  elastic_terms.resize(m);
+  // One pass over the table's arrays, a run of one group at a time: each constraint's error and
+  // elastic energy, summed in kLanes partial sums (lane k takes the run's constraints begin + k,
+  // begin + k + kLanes, ...), added at the run's end in a fixed tree: a sum in one register
+  // chains every constraint through the adder's latency, and this pass was most of measure's own
+  // time (docs/performance.md, session 29). The order depends on the model alone, so a sample is
+  // the same bits on every machine and build flags that keep IEEE double; it is not the bits of
+  // the one-at-a-time sum (the lanes round differently, by a few ulps of the sum). A constraint
+  // whose energy is not counted adds +0.0. The maxima ignore a NaN error; a NaN error makes its
+  // group's sum of squares NaN, and that marks the maxima. An FEM-kind constraint's error is
+  // constraint_error's, put in its value's place (its scale is 1 and its energy not counted here).
+  for (const size_t j : t->fem) values[j] = constraint_error(model, model.constraints[j], x);
   const double* __restrict V = values.data();
-  const double* __restrict scale = t->scale.data();
-  const double* __restrict two_alpha = t->two_alpha.data();
-  const std::uint64_t* __restrict counted = t->counted.data();
-  const std::uint16_t* group_of = t->group.data();
-  double* __restrict errs = errors.data();
-  double* __restrict terms = elastic_terms.data();
-  for (size_t j = 0; j < m; ++j) {
-    errs[j] = std::abs(V[j]) / scale[j];  // normalized_error (core/constraint_functions.hpp)
-    terms[j] = std::bit_cast<double>(std::bit_cast<std::uint64_t>(V[j] * V[j] / two_alpha[j]) & counted[j]);
-  }
-  for (const size_t j : t->fem) errs[j] = constraint_error(model, model.constraints[j], x);
-  // The elastic energy by itself: one sum, in a register (beside the error's sums it was kept in
-  // memory, a store and a load between every two additions).
-  double elastic = 0.0;
-  for (size_t j = 0; j < m; ++j) elastic += terms[j];
+  double elastic_lanes[kLanes] = {};
   double sum_sq = 0.0, error_max = 0.0;
-  for (size_t j = 0; j < m;) {
-    const std::uint16_t group = group_of[j];
-    GroupError g = s.groups[group];
-    for (; j < m && group_of[j] == group; ++j) {
-      const double err = errs[j];
-      g.max = std::max(g.max, err);
-      g.rms += err * err;
-      ++g.count;
-      error_max = std::max(error_max, err);
-      sum_sq += err * err;
-      if (std::isnan(err)) {  // std::max(a, NaN) returns a: keep the NaN visible
-        error_max = kNaN;
-        g.max = kNaN;
-      }
-    }
-    s.groups[group] = g;
+  for (const MetricsTable::GroupRun& run : t->group_runs) {
+    double sq[kLanes] = {}, mx[kLanes] = {};
+    lane_sums(V, t->scale.data(), t->two_alpha.data(), t->counted.data(), run.begin, run.end, sq, mx, elastic_lanes);
+    const double run_sq = tree(sq);
+    double run_max = mx[0];
+    for (size_t k = 1; k < kLanes; ++k) run_max = std::max(run_max, mx[k]);
+    GroupError& g = s.groups[run.group];
+    g.rms += run_sq;
+    g.max = std::max(g.max, run_max);
+    g.count += static_cast<int>(run.end - run.begin);
+    sum_sq += run_sq;
+    error_max = std::max(error_max, run_max);
   }
+  const double elastic = tree(elastic_lanes);  // the lanes of every run
+  for (GroupError& g : s.groups)
+    if (std::isnan(g.rms)) g.max = kNaN;  // a NaN error in the group
+  if (std::isnan(sum_sq)) error_max = kNaN;
   s.constraint_error_max = error_max;
   for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
   s.constraint_error_rms = m == 0 ? 0.0 : std::sqrt(sum_sq / static_cast<double>(m));
@@ -235,7 +278,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   s.total_energy = s.kinetic_energy + s.potential_energy + s.elastic_energy;
 
   // Explosion indicators.
-  s.finite = x.allFinite() && v.allFinite();
+  s.finite = all_finite(x) && all_finite(v);
   if (s.finite) {
     double vmax2 = 0.0;
     for (int i = 0; i < n; ++i) vmax2 = std::max(vmax2, v.row(i).squaredNorm());
@@ -293,6 +336,8 @@ SunkParticles sunk_particles(const Model& model, const State& state) {
   std::vector<Vec3> centers;
   for (const SphereCollider& sphere : model.spheres)
     centers.push_back(sphere_center(model, sphere, state.time));
+  std::vector<double> plane_norms;  // |normal| of each plane, once a sample rather than once a particle
+  for (const PlaneCollider& p : model.planes) plane_norms.push_back(p.normal.norm());
   for (int i = 0; i < model.particle_count(); ++i) {
     if (model.inv_mass[static_cast<size_t>(i)] == 0.0) continue;
     const Vec3 x = state.x.row(i);
@@ -302,8 +347,9 @@ SunkParticles sunk_particles(const Model& model, const State& state) {
     }
     double deepest = 0.0;  // of this particle, over the colliders
     bool sunk = false;
-    for (const PlaneCollider& p : model.planes) {
-      const double nn = p.normal.norm();
+    for (size_t k = 0; k < model.planes.size(); ++k) {
+      const PlaneCollider& p = model.planes[k];
+      const double nn = plane_norms[k];
       const double signed_distance = (p.normal.dot(x) + p.offset) / nn;
       if (signed_distance < 0.0) {
         sunk = true;
@@ -427,7 +473,11 @@ std::string explosion_reason(const Model& model, const State& state, const Sampl
         << limits.max_extent_ratio << " times the initial " << ref << " m";
     return why.str();
   }
+  // The root only where the square comes near the limit (a particle within 0.999 of it squared
+  // is not beyond it): the same particles as the distance of every one, for n roots fewer.
+  const double near_sq = 0.999 * limits.max_distance * limits.max_distance;
   for (int i = 0; i < n; ++i) {
+    if (!(state.x.row(i).squaredNorm() > near_sq)) continue;
     const double d = state.x.row(i).norm();
     if (d > limits.max_distance) {
       why << "particle " << i << " is " << d << " m from the origin, beyond limits.max_distance = "

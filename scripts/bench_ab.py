@@ -17,6 +17,10 @@ measured side by side; alternating the builds spreads what the machine's load do
 them. The machine (the CPU model /proc/cpuinfo gives) and the load average before and after
 each process are printed and kept in OUT/summary.json.
 
+With --load N, N other processes (each a busy loop of this Python) run on the machine from
+before the first round to after the last: what a shared machine's other tenants do, made
+reproducible (the comparison of thread counts under load in docs/performance.md).
+
     /usr/bin/python3 scripts/bench_ab.py --rounds 6 --reps 3 \\
         --filter 'solver/cloth256_distance/(pbd|xpbd)/colored/double/t[12]' \\
         --build before=../before/build/benchmarks/bench_solvers \\
@@ -111,9 +115,13 @@ def main(argv):
     parser.add_argument("--min-time", type=float, help="--benchmark_min_time, seconds")
     parser.add_argument("--counter", default="Mproj_per_s", help="the counter compared (default Mproj_per_s)")
     parser.add_argument("--out", required=True, help="a folder for every run's JSON (must not exist)")
+    parser.add_argument("--load", type=int, default=0,
+                        help="busy processes kept running beside the benchmarks (default 0)")
     args = parser.parse_args(argv[1:])
     if args.reps < 1 or args.rounds < 1:
         parser.error("--reps and --rounds must be at least 1")
+    if args.load < 0:
+        parser.error("--load must be at least 0")
     labels = [b["label"] for b in args.build]
     if len(set(labels)) != len(labels):
         parser.error("two builds have one label")
@@ -128,6 +136,32 @@ def main(argv):
     env.setdefault("PBDBENCH_SCENARIOS",
                    os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scenarios"))
     runs, rounds = [], []
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.load)]
+    try:
+        status = measure(args, env, runs, rounds)
+    finally:
+        for p in busy:
+            p.kill()
+            p.wait()
+    if status != 0:
+        return status
+    summary = summarize(args.build, rounds, args.counter)
+    record = {"machine": cpu_model(), "builds": args.build, "filter": args.filter, "reps": args.reps,
+              "rounds": args.rounds, "counter": args.counter, "load_processes": args.load,
+              "load_pids": [p.pid for p in busy], "runs": runs, **summary}
+    with open(os.path.join(args.out, "summary.json"), "w") as f:
+        json.dump(record, f, indent=1)
+    loads = [x for run in runs for x in (run["load_before"], run["load_after"])]
+    print(f"machine: {record['machine']}; load average {min(loads):.2f} to {max(loads):.2f}; "
+          f"{args.load} busy processes beside; "
+          f"{args.rounds} rounds x {args.reps} repetitions a build; {args.counter}: median [min, max]")
+    report(args, labels, summary)
+    return 0
+
+
+def measure(args, env, runs, rounds):
+    """The rounds: every build's process in rotated order; its values into rounds, its record
+    into runs. 0, or 1 when a process failed or matched nothing."""
     n = len(args.build)
     for r in range(args.rounds):
         per = {}
@@ -154,14 +188,10 @@ def main(argv):
             runs.append({"round": r + 1, "build": b["label"], "file": os.path.basename(path),
                          "load_before": before, "load_after": after})
         rounds.append(per)
-    summary = summarize(args.build, rounds, args.counter)
-    record = {"machine": cpu_model(), "builds": args.build, "filter": args.filter, "reps": args.reps,
-              "rounds": args.rounds, "counter": args.counter, "runs": runs, **summary}
-    with open(os.path.join(args.out, "summary.json"), "w") as f:
-        json.dump(record, f, indent=1)
-    loads = [x for run in runs for x in (run["load_before"], run["load_after"])]
-    print(f"machine: {record['machine']}; load average {min(loads):.2f} to {max(loads):.2f}; "
-          f"{args.rounds} rounds x {args.reps} repetitions a build; {args.counter}: median [min, max]")
+    return 0
+
+
+def report(args, labels, summary):
     for b in args.build:
         print(f"  {b['label']}: {b['binary']}")
     print()
@@ -178,7 +208,6 @@ def main(argv):
         for x in summary["scaling"]:
             print(f"| {x['case']} | {x['build']} | {fmt(x, 3)} | "
                   + " ".join(f"{v:.2f}" for v in x["per_round"]) + " |")
-    return 0
 
 
 if __name__ == "__main__":

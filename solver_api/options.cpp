@@ -281,8 +281,9 @@ std::vector<OptionRow> make_rows() {
             "docs/solvers.md); pbd-seed is float by its departure D10"));
   add(kPbd | kXpbd, integer("solver.threads", &S::threads, within(0, 1024),
               "pbd, xpbd: threads of the colored and Jacobi sweeps (the results are the same "
-              "bits at any count); 0: the cores the run may use (its share under sweep --jobs); "
-              "1 by default (docs/performance.md)"));
+              "bits at any count); 0: the cores the run may use (its share under sweep --jobs) "
+              "or one, sweep by sweep whichever the run's own timings show faster "
+              "(docs/solvers.md)"));
   // [solver.pbd], [solver.xpbd]
   add(kPbd, named("solver.pbd.material", &S::pbd_material, {"compliance", "stiffness"}, parse_pbd_material,
             "pbd: where each constraint's per-iteration stiffness k comes from: compliance (the "

@@ -124,11 +124,12 @@ struct SolverOptions {
                                     // "float" (the projections computed in float32, the state
                                     // stored as float32); pbd-seed is float by its D10, the
                                     // others ignore it
-  int threads = 1;                  // solver.threads: threads of the colored and Jacobi sweeps
-                                    // (pbd, xpbd); 0 = the cores this process may run on
-                                    // (available_cores(): its share under sweep --jobs). 1 by
-                                    // default: on the shared 2-core machines measured, 2
-                                    // threads were slower (docs/performance.md)
+  int threads = 0;                  // solver.threads: threads of the colored and Jacobi sweeps
+                                    // (pbd, xpbd); 0 (the default) = the cores this process may
+                                    // run on (available_cores(): its share under sweep --jobs)
+                                    // or one, for each sweep whichever its timings show faster
+                                    // (solvers/sweep_threads.hpp: on a shared machine two
+                                    // threads can be slower than one, docs/performance.md)
 
   // [solver.pbd]: Mueller et al. 2007.
   PbdMaterial pbd_material = PbdMaterial::Compliance;  // solver.pbd.material

@@ -112,6 +112,9 @@ class Solver {
   virtual StepReport step(const Model& model, State& state, double dt) = 0;
   // The registered name: "pbd-seed", "pbd", "xpbd", "ref-bdf", ...
   virtual std::string name() const = 0;
+  // The most threads a step runs on (the run's logging takes a thread of its own only when the
+  // run has a core beyond these: harness/step_logger.hpp).
+  virtual int threads() const { return 1; }
 };
 
 }  // namespace pbdbench

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -16,6 +17,7 @@
 #include "solvers/projection_kernels.hpp"
 #include "solvers/projection_wide.hpp"
 #include "solvers/staged_tasks.hpp"
+#include "solvers/sweep_threads.hpp"
 
 namespace pbdbench {
 
@@ -69,7 +71,7 @@ class Program final : public CompiledProjection {
         rule_(rule),
         width_(std::min(width, static_cast<int>(widest_vector_width()))),
         order_(options.order),
-        threads_(resolve_threads(options.threads)),
+        threads_(resolve_threads(options.threads), options.threads == 0),
         relaxation_(options.jacobi_relaxation),
         averaging_(options.jacobi_averaging),
         particles_(model.particle_count()),
@@ -218,14 +220,20 @@ class Program final : public CompiledProjection {
     }
   }
 
+  int threads() const override { return parallel_ ? threads_.most() : 1; }
+
   void sweeps(int iterations, long step, int substep, const Ordering& ordering,
               StepReport& report) override {
     long skipped = 0;
     if (parallel_ && !per_item_ && order_ != ProjectionOrder::Sequential && order_ != ProjectionOrder::Reversed) {
-      // One sweep per run of the threads, so that a cancellation is seen between sweeps.
+      // One sweep per run of the threads, so that a cancellation is seen between sweeps, each
+      // on the threads threads_ gives it (solvers/sweep_threads.hpp), timed for its choice.
       for (int sweep = 0; sweep < iterations; ++sweep) {
         throw_if_cancelled("a projection sweep");
-        skipped += threaded_sweeps(1);
+        const int threads = threads_.next();
+        const auto t0 = std::chrono::steady_clock::now();
+        skipped += threaded_sweeps(1, threads);
+        threads_.record(threads, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
         ++report.iterations;
       }
       report.skipped += static_cast<int>(skipped);
@@ -274,7 +282,7 @@ class Program final : public CompiledProjection {
             }
         }
       }
-      run_staged(threads_, wait, [&](int t, int) {
+      run_staged(threads_.chosen(), wait, [&](int t, int) {
         const Task& task = tasks[static_cast<size_t>(t)];
         residual_terms(task.c, task.a, task.b, g);
       });
@@ -482,9 +490,9 @@ class Program final : public CompiledProjection {
     }
     int total = 0;
     for (const Group& g : groups_) total += g.items;
-    parallel_ = threads_ > 1 && !per_item_ && !groups_.empty() &&
+    parallel_ = threads_.most() > 1 && !per_item_ && !groups_.empty() &&
                 total / static_cast<int>(groups_.size()) >= kParallelGroup;
-    if (order_ == ProjectionOrder::Jacobi) parallel_ = threads_ > 1 && total >= kParallelGroup;
+    if (order_ == ProjectionOrder::Jacobi) parallel_ = threads_.most() > 1 && total >= kParallelGroup;
   }
 
   // Jacobi: the buffer offsets of each kind, and for each moving particle the buffer entries of
@@ -898,7 +906,7 @@ class Program final : public CompiledProjection {
 
   // `iterations` sweeps as tasks in stages: a colour's chunks and contacts, colour after colour;
   // Jacobi's items, then its particles' sums, the contacts' sums, the updates.
-  long threaded_sweeps(int iterations) {
+  long threaded_sweeps(int iterations, int threads) {
     tasks_.clear();
     wait_.clear();
     int stage = 0;  // tasks before the current stage
@@ -934,8 +942,8 @@ class Program final : public CompiledProjection {
         next_stage();
       }
     }
-    skipped_by_thread_.assign(static_cast<size_t>(threads_), 0);
-    run_staged(threads_, wait_, [&](int k, int thread) {
+    skipped_by_thread_.assign(static_cast<size_t>(threads), 0);
+    run_staged(threads, wait_, [&](int k, int thread) {
       const Task& t = tasks_[static_cast<size_t>(k)];
       long sk = 0;
       switch (t.kind) {
@@ -973,7 +981,7 @@ class Program final : public CompiledProjection {
   ProjectionRule rule_;
   int width_;  // register bytes the kernels may use (solvers/projection_wide.hpp)
   ProjectionOrder order_;
-  int threads_;
+  SweepThreads threads_;  // solver.threads: the most, and for 0 the count of each sweep
   double relaxation_;
   bool averaging_;
   int particles_;

@@ -43,6 +43,11 @@ class CompiledProjection {
  public:
   virtual ~CompiledProjection() = default;
 
+  // The most threads a sweep runs on: 1 when its sweeps never run threaded (sequential and
+  // reversed orders, small colours), else solver.threads resolved (for 0, each sweep runs on
+  // that many or on one, whichever is faster at the time: solvers/sweep_threads.hpp).
+  virtual int threads() const = 0;
+
   // The substep's length h and the model of this step (its rest values may differ from the
   // model compiled: relax.frames gives the solver a relaxed copy; its topology may not).
   virtual void set_substep(const Model& model, double h) = 0;

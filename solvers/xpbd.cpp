@@ -81,6 +81,7 @@ class XpbdSolver final : public Solver {
   }
 
   std::string name() const override { return "xpbd"; }
+  int threads() const override { return compiled_ ? compiled_->threads() : 1; }
 
   StepReport step(const Model& model, State& state, double dt) override {
     check_step(model, state, dt, particles_, constraints_);

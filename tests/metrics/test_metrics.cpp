@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -629,18 +630,26 @@ TEST(metrics, TheTableListedSupportsAndOnePassGiveTheSameBits) {
   unlisted.supports_listed = false;
   unlisted.table.reset();
   const Sample a = measure(m, s, listed), b = measure(m, s, unlisted);
-  // One constraint at a time from the records, as the sums were written before.
+  // From the records, as measure documents its sums: a run of one group at a time, its sum of
+  // squares in lanes added in a tree (with no run longer than a lane here, the tree adds the
+  // run's constraints in order), the runs' sums in model order.
   std::vector<GroupError> groups(m.group_names.size());
   double max = 0.0, sum_sq = 0.0, elastic = 0.0;
-  for (const Constraint& c : m.constraints) {
-    const double C = eval_constraint(c, s.x).C, err = normalized_error(c, C);
-    GroupError& g = groups[c.group];
-    g.max = std::max(g.max, err);
-    g.rms += err * err;
-    ++g.count;
-    max = std::max(max, err);
-    sum_sq += err * err;
-    if (c.compliance > 0.0) elastic += C * C / (2.0 * c.compliance);
+  for (size_t j = 0; j < m.constraints.size();) {
+    const std::uint16_t group = m.constraints[j].group;
+    double run_sq = 0.0;
+    for (; j < m.constraints.size() && m.constraints[j].group == group; ++j) {
+      const Constraint& c = m.constraints[j];
+      const double C = eval_constraint(c, s.x).C, err = normalized_error(c, C);
+      GroupError& g = groups[c.group];
+      g.max = std::max(g.max, err);
+      ++g.count;
+      max = std::max(max, err);
+      run_sq += err * err;
+      if (c.compliance > 0.0) elastic += C * C / (2.0 * c.compliance);
+    }
+    groups[group].rms += run_sq;
+    sum_sq += run_sq;
   }
   for (GroupError& g : groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
   for (const Sample* x : {&a, &b}) {
@@ -657,6 +666,75 @@ TEST(metrics, TheTableListedSupportsAndOnePassGiveTheSameBits) {
   EXPECT_EQ(a.support_force, b.support_force);
   EXPECT_EQ(a.support_force, support_force(m, s));
   EXPECT_TRUE(a.support_force.allFinite());
+}
+
+// Runs longer than measure's 8 lanes, with tails: the sums are the lane sums measure documents
+// (lane k of a run takes its constraints begin + k, begin + k + 8, ...; the lanes added in the
+// tree ((0+1)+(2+3))+((4+5)+(6+7)); the runs in model order), within round-off of the
+// one-at-a-time sums, and a NaN error deep in a run marks its group's and the overall maxima.
+TEST(metrics, LongRunsAreSummedInLanesAndANaNInsideOneIsSeen) {
+  const int n = 60;
+  std::vector<Vec3> x;
+  for (int i = 0; i < n; ++i) x.push_back(Vec3(0.1 * i, 0.02 * (i % 7), 0.0));
+  Model m = particles(x, std::vector<double>(static_cast<size_t>(n), 1.0));
+  const std::uint16_t stretch = m.group_index("stretch"), shear = m.group_index("shear");
+  // 21 stretch links, 13 shear links, 19 stretch links: runs of 21, 13 and 19.
+  const int lengths[] = {21, 13, 19};
+  const std::uint16_t groups_of_runs[] = {stretch, shear, stretch};
+  int at = 0;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < lengths[r]; ++k, ++at) {
+      Constraint c;
+      c.particles = {at % (n - 1), at % (n - 1) + 1, -1, -1};
+      c.rest = 0.05 + 0.003 * at;  // every link stretched or compressed by its own amount
+      c.compliance = at % 3 == 0 ? 0.0 : 1e-3 * (1 + at % 5);
+      c.group = groups_of_runs[r];
+      m.constraints.push_back(c);
+    }
+  State s = rest_state(m);
+  const MetricsBaseline base = measure_baseline(m, s);
+  const Sample out = measure(m, s, base);
+
+  std::vector<double> err, term;
+  for (const Constraint& c : m.constraints) {
+    const double C = eval_constraint(c, s.x).C;
+    err.push_back(normalized_error(c, C));
+    term.push_back(c.compliance > 0.0 ? C * C / (2.0 * c.compliance) : 0.0);
+  }
+  const auto tree = [](const double* a) { return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])); };
+  double sum_sq = 0.0, lanes_elastic[8] = {}, seq_sq = 0.0, seq_elastic = 0.0;
+  double group_sq[2] = {0.0, 0.0};
+  size_t begin = 0;
+  for (int r = 0; r < 3; ++r) {
+    double sq[8] = {};
+    for (size_t j = begin; j < begin + static_cast<size_t>(lengths[r]); ++j) {
+      sq[(j - begin) % 8] += err[j] * err[j];
+      lanes_elastic[(j - begin) % 8] += term[j];
+      seq_sq += err[j] * err[j];
+      seq_elastic += term[j];
+    }
+    const double run = tree(sq);
+    sum_sq += run;
+    group_sq[groups_of_runs[r] == stretch ? 0 : 1] += run;
+    begin += static_cast<size_t>(lengths[r]);
+  }
+  EXPECT_EQ(out.constraint_error_rms, std::sqrt(sum_sq / 53.0));
+  EXPECT_EQ(out.elastic_energy, tree(lanes_elastic));
+  EXPECT_EQ(out.groups[stretch].rms, std::sqrt(group_sq[0] / 40.0));
+  EXPECT_EQ(out.groups[shear].rms, std::sqrt(group_sq[1] / 13.0));
+  EXPECT_EQ(out.groups[stretch].count, 40);
+  EXPECT_EQ(out.groups[shear].count, 13);
+  EXPECT_TRUE(Near(out.constraint_error_rms, std::sqrt(seq_sq / 53.0), 1e-14));
+  EXPECT_TRUE(Near(out.elastic_energy, seq_elastic, 1e-14));
+  EXPECT_GT(out.elastic_energy, 0.0);
+  EXPECT_EQ(out.constraint_error_max, *std::max_element(err.begin(), err.end()));
+
+  // A NaN position under the 30th link (the shear run's 9th: past its first 8 lanes).
+  s.x(m.constraints[29].particles[1], 1) = kNaN;
+  const Sample bad = measure(m, s, base);
+  EXPECT_TRUE(std::isnan(bad.groups[shear].max));
+  EXPECT_TRUE(std::isnan(bad.constraint_error_max));
+  EXPECT_TRUE(std::isnan(bad.constraint_error_rms));
 }
 
 TEST(metrics, SupportForceIsNaNWithoutMultipliersAndZeroWithoutSupports) {

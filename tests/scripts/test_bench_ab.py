@@ -73,6 +73,19 @@ class BenchAb(unittest.TestCase):
         self.assertIn("| tN / t1 in one process (per round) |", r.stdout)
         self.assertIn(f"| {t2} | two |", r.stdout)
 
+    def test_busy_processes_beside_and_gone_after(self):
+        out = os.path.join(TMP, "load")
+        r = bench_ab("--build", f"one={BENCH}", "--filter", CASES, "--reps", "1", "--rounds", "1",
+                     "--min-time", "0.01", "--load", "2", "--out", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(out, "summary.json")) as f:
+            s = json.load(f)
+        self.assertEqual(s["load_processes"], 2)
+        self.assertEqual(len(s["load_pids"]), 2)
+        for pid in s["load_pids"]:  # killed and reaped: no such process now
+            self.assertFalse(os.path.exists(f"/proc/{pid}"), pid)
+        self.assertIn("2 busy processes beside", r.stdout)
+
     def test_refusals(self):
         out = os.path.join(TMP, "exists")
         os.makedirs(out)

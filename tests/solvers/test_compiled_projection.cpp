@@ -212,12 +212,15 @@ TEST(CompiledProjection, TheSameBitsAtAnyThreadCount) {
         SCOPED_TRACE(name + " " + to_string(order) + " " + to_string(precision));
         std::uint64_t first = 0;
         double first_g = 0.0, first_h = 0.0;
-        for (int threads : {1, 2, 3}) {
+        for (int threads : {1, 2, 3, 0}) {  // 0: each sweep on the cores or on one (sweep_threads.hpp)
           SolverOptions o = options_for(name, 3, 1);
           o.order = order;
           o.precision = precision;
           o.threads = threads;
           auto sv = make_solver(o, m);
+          // The threads a step runs on (what the run's logging asks): sequential never threads.
+          const int most = order == ProjectionOrder::Sequential ? 1 : resolve_threads(threads);
+          EXPECT_EQ(sv->threads(), most);
           State s = rest_state(m);
           StepReport r;
           for (int n = 0; n < 2; ++n) r = sv->step(m, s, 1.0 / 60.0);
