@@ -101,7 +101,7 @@ struct MetricsTable {
   // division by 1 and a mask instead of a branch around the division: the loop is vectorised.
   std::vector<double> two_alpha;
   std::vector<std::uint64_t> counted;
-  std::vector<std::uint16_t> group;
+  std::size_t constraints = 0;     // the model's count it was built for
   // The constraints in runs of one group, in model order: measure sums each run in lanes.
   struct GroupRun {
     std::size_t begin = 0, end = 0;
@@ -120,7 +120,7 @@ std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
   t->scale.resize(m);
   t->two_alpha.resize(m);
   t->counted.resize(m);
-  t->group.resize(m);
+  t->constraints = m;
   for (size_t j = 0; j < m; ++j) {
     const Constraint& c = model.constraints[j];
     const bool fem = is_fem_kind(c.kind);
@@ -131,8 +131,7 @@ std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
     const bool counts = c.compliance > 0.0 && !fem;
     t->two_alpha[j] = counts ? 2.0 * c.compliance : 1.0;
     t->counted[j] = counts ? ~std::uint64_t{0} : 0;
-    t->group[j] = c.group;
-    if (j == 0 || c.group != t->group[j - 1]) t->group_runs.push_back({j, j, c.group});
+    if (j == 0 || c.group != t->group_runs.back().group) t->group_runs.push_back({j, j, c.group});
     t->group_runs.back().end = j + 1;
     if (fem) t->fem.push_back(j);
   }
@@ -202,7 +201,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   const size_t m = model.constraints.size();
   std::shared_ptr<const MetricsTable> own;
   const MetricsTable* t = baseline.table.get();
-  if (t == nullptr || t->group.size() != m) {
+  if (t == nullptr || t->constraints != m) {
     own = metrics_table(model);
     t = own.get();
   }
