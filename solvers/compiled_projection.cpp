@@ -220,12 +220,18 @@ class Program final : public CompiledProjection {
     }
   }
 
-  int threads() const override { return parallel_ ? threads_.most() : 1; }
+  int threads() const override { return sweeps_threaded() ? threads_.most() : 1; }
+
+  // The sweeps run as tasks on threads: coloured or Jacobi, compiled, large enough (parallel_).
+  // Sequential and reversed never do (their dependency levels are too small to share).
+  bool sweeps_threaded() const {
+    return parallel_ && !per_item_ && order_ != ProjectionOrder::Sequential && order_ != ProjectionOrder::Reversed;
+  }
 
   void sweeps(int iterations, long step, int substep, const Ordering& ordering,
               StepReport& report) override {
     long skipped = 0;
-    if (parallel_ && !per_item_ && order_ != ProjectionOrder::Sequential && order_ != ProjectionOrder::Reversed) {
+    if (sweeps_threaded()) {
       // One sweep per run of the threads, so that a cancellation is seen between sweeps, each
       // on the threads threads_ gives it (solvers/sweep_threads.hpp), timed for its choice.
       for (int sweep = 0; sweep < iterations; ++sweep) {
