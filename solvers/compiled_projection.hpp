@@ -78,8 +78,9 @@ class CompiledProjection {
                            std::vector<char>& contact_active) const = 0;
 };
 
-// The compiled sweeps in the run's precision (options.precision) with
-// resolve_threads(options.threads) threads. `ordering` is the solver's, built for the model.
+// The compiled sweeps in the run's precision (options.precision) on at most
+// resolve_threads(options.threads) threads (for options.threads = 0, each threaded sweep on that
+// many or on one: solvers/sweep_threads.hpp). `ordering` is the solver's, built for the model.
 // With one_by_one every order runs item by item in the ordering's sequence through the same
 // kernels (what the levels and colours must reproduce bit for bit; Jacobi ignores it). `width`
 // caps the registers: the widest the processor has (widest_vector_width()) by default.
