@@ -307,50 +307,27 @@ class Program final : public CompiledProjection {
   }
 
   // The items [begin, end) of kind k at residual_positions_: h_j into residual_terms_[k], and
-  // g -= lambda_j grad C_j for the moving particles, lane by lane in slot order.
+  // g -= lambda_j grad C_j for the moving particles, lane by lane in slot order
+  // (solvers/projection_kernels.hpp, residual_chunk), in the widest packs this run may use.
   void residual_terms(int k, int begin, int end, Points& g) const {
-    using W = Pack<double, 16>;
     const KindBlock<T>& b = blocks_[static_cast<size_t>(k)];
     if (begin >= end) return;
-    const double* P = residual_positions_.data();
-    double* terms = residual_terms_[static_cast<size_t>(k)].data();
     BlockView<double> v;
     for (int i = 0; i < b.arity; ++i) v.particle[i] = b.particle[static_cast<size_t>(i)].data();
     v.rest = b.rest_double.data();
     for (int n = 0; n < 9; ++n) v.rest_inverse[n] = b.rest_inverse_double[static_cast<size_t>(n)].data();
+    ResidualArgs<T> r;
+    r.P = residual_positions_.data();
+    r.compliance = b.compliance.data();
+    r.lambda = b.lambda.data();
+    r.moving = moving_.data();
+    r.h2 = h_ * h_;
+    r.terms = residual_terms_[static_cast<size_t>(k)].data();
+    r.g = g.data();
     const auto kind = static_cast<ConstraintKind>(k);
-    over_items<double, W>(begin, end, [&](int s, auto ln) -> long {
-      using Ln = decltype(ln);
-      using L = typename Ln::L;
-      V3<L> x[4];
-      for (int i = 0; i < b.arity; ++i) x[i] = ln.position(P, v.particle[i] + s);
-      StencilEval<L> e;
-      switch (kind) {
-        case ConstraintKind::Distance: e = distance_stencil(x[0], x[1], ln.value(v.rest + s)); break;
-        case ConstraintKind::Volume: e = eval4<ConstraintKind::Volume>(v, s, x, ln); break;
-        case ConstraintKind::Bending: e = eval4<ConstraintKind::Bending>(v, s, x, ln); break;
-        case ConstraintKind::FemDeviatoric: e = eval4<ConstraintKind::FemDeviatoric>(v, s, x, ln); break;
-        case ConstraintKind::FemHydrostatic: e = eval4<ConstraintKind::FemHydrostatic>(v, s, x, ln); break;
-        case ConstraintKind::FemStrainTriangle:
-        case ConstraintKind::FemStrainTet: return 0L;  // never compiled
-      }
-      for (int lane = 0; lane < ln.n; ++lane) {
-        const auto at = [&](const L& value) -> double { return value[lane]; };
-        const size_t z = static_cast<size_t>(s + lane);
-        const double lam = static_cast<double>(b.lambda[z]);
-        terms[z] = at(e.C) + b.compliance[z] / (h_ * h_) * lam;
-        if (lam == 0.0) continue;
-        for (int i = 0; i < b.arity; ++i) {
-          const int q = b.particle[static_cast<size_t>(i)][z];
-          if (!moving_[static_cast<size_t>(q)]) continue;
-          const V3<L>& gr = e.grad[static_cast<size_t>(i)];
-          g(q, 0) -= lam * at(gr.x);
-          g(q, 1) -= lam * at(gr.y);
-          g(q, 2) -= lam * at(gr.z);
-        }
-      }
-      return 0;
-    });
+    if (width_ == static_cast<int>(VectorWidth::Avx512)) return residual_chunk_avx512(kind, v, begin, end, r);
+    if (width_ == static_cast<int>(VectorWidth::Avx2)) return residual_chunk_avx2(kind, v, begin, end, r);
+    residual_chunk<Pack<double, 16>>(kind, v, begin, end, r);
   }
 
   void end_substep(Points& p, std::vector<double>* lambda, std::vector<double>& contact_lambda,

@@ -15,4 +15,14 @@ long project_chunk_avx2(const ChunkSpec& c, const BlockView<float>& b, float* P,
   return project_chunk<float, Pack<float, 32>>(c, b, P, X0, J);
 }
 
+void residual_chunk_avx2(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                         const ResidualArgs<double>& r) {
+  residual_chunk<Pack<double, 32>>(kind, b, begin, end, r);
+}
+
+void residual_chunk_avx2(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                         const ResidualArgs<float>& r) {
+  residual_chunk<Pack<double, 32>>(kind, b, begin, end, r);
+}
+
 }  // namespace pbdbench

@@ -15,4 +15,14 @@ long project_chunk_avx512(const ChunkSpec& c, const BlockView<float>& b, float* 
   return project_chunk<float, Pack<float, 64>>(c, b, P, X0, J);
 }
 
+void residual_chunk_avx512(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                           const ResidualArgs<double>& r) {
+  residual_chunk<Pack<double, 64>>(kind, b, begin, end, r);
+}
+
+void residual_chunk_avx512(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                           const ResidualArgs<float>& r) {
+  residual_chunk<Pack<double, 64>>(kind, b, begin, end, r);
+}
+
 }  // namespace pbdbench

@@ -435,4 +435,70 @@ inline long project_chunk(const ChunkSpec& c, const BlockView<T>& b, T* P, const
   return 0;
 }
 
+// ---------------------------------------------------------------------------------------------
+// xpbd's residuals (Macklin et al. 2016, eqs. 8 and 9; solvers/xpbd.cpp) of the items
+// [begin, end) of one kind, at positions P (double, kStride scalars a particle), in packs W:
+// h_j = C_j + (alpha_j / h^2) lambda_j into terms[s], and g_q -= lambda_j grad_i C_j for each
+// moving particle q of an item whose lambda_j is not 0 (g: 3 doubles a particle). The products
+// are formed in the packs; the subtractions one lane after another in slot order, as a loop over
+// the items makes them: the same bits in any width. The block view's rest values (and Dm^-1) are
+// the double ones; LT is the multipliers' type (the block's precision).
+template <class LT>
+struct ResidualArgs {
+  const double* P = nullptr;           // (n x kStride) m
+  const double* compliance = nullptr;  // (count) alpha
+  const LT* lambda = nullptr;          // (count)
+  const char* moving = nullptr;        // (n) inv_mass != 0
+  double h2 = 0.0;                     // h^2, s^2
+  double* terms = nullptr;             // (count) h_j
+  double* g = nullptr;                 // (n x 3)
+};
+
+template <class W, ConstraintKind Kind, class LT>
+inline void residual_items(const BlockView<double>& b, int begin, int end, const ResidualArgs<LT>& r) {
+  constexpr int kArity = Kind == ConstraintKind::Distance ? 2 : 4;
+  over_items<double, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
+    using L = typename decltype(ln)::L;
+    V3<L> x[4];
+    for (int i = 0; i < kArity; ++i) x[i] = ln.position(r.P, b.particle[i] + s);
+    StencilEval<L> e;
+    if constexpr (Kind == ConstraintKind::Distance) e = distance_stencil(x[0], x[1], ln.value(b.rest + s));
+    else e = eval4<Kind>(b, s, x, ln);
+    L lam;
+    for (int k = 0; k < W::kWidth; ++k) lam.set(k, static_cast<double>(r.lambda[s + ln.lane(k)]));
+    ln.put(r.terms + s, e.C + ln.value(r.compliance + s) / L(r.h2) * lam);
+    V3<L> term[kArity];
+    for (int i = 0; i < kArity; ++i) term[i] = lam * e.grad[static_cast<size_t>(i)];
+    const int lanes = ln.bits(lam != L(0.0));
+    for (int k = 0; k < W::kWidth; ++k) {
+      if (!((lanes >> k) & 1)) continue;
+      for (int i = 0; i < kArity; ++i) {
+        const std::int32_t q = b.particle[i][s + k];
+        if (!r.moving[q]) continue;
+        double* gq = r.g + 3 * static_cast<std::ptrdiff_t>(q);
+        gq[0] -= term[i].x[k];
+        gq[1] -= term[i].y[k];
+        gq[2] -= term[i].z[k];
+      }
+    }
+    return 0;
+  });
+}
+
+// The residuals of the items [begin, end) of a block of kind `kind` (strain kinds: never
+// compiled, nothing done).
+template <class W, class LT>
+inline void residual_chunk(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                           const ResidualArgs<LT>& r) {
+  switch (kind) {
+    case ConstraintKind::Distance: return residual_items<W, ConstraintKind::Distance>(b, begin, end, r);
+    case ConstraintKind::Volume: return residual_items<W, ConstraintKind::Volume>(b, begin, end, r);
+    case ConstraintKind::Bending: return residual_items<W, ConstraintKind::Bending>(b, begin, end, r);
+    case ConstraintKind::FemDeviatoric: return residual_items<W, ConstraintKind::FemDeviatoric>(b, begin, end, r);
+    case ConstraintKind::FemHydrostatic: return residual_items<W, ConstraintKind::FemHydrostatic>(b, begin, end, r);
+    case ConstraintKind::FemStrainTriangle:
+    case ConstraintKind::FemStrainTet: return;
+  }
+}
+
 }  // namespace pbdbench

@@ -25,4 +25,15 @@ long project_chunk_avx512(const ChunkSpec& c, const BlockView<double>& b, double
 long project_chunk_avx512(const ChunkSpec& c, const BlockView<float>& b, float* P, const float* X0,
                           const JacobiBuffers<float>& J);
 
+// xpbd's residuals of the items [begin, end) of a block (residual_chunk) in packs of that width,
+// the multipliers in double or float.
+void residual_chunk_avx2(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                         const ResidualArgs<double>& r);
+void residual_chunk_avx2(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                         const ResidualArgs<float>& r);
+void residual_chunk_avx512(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                           const ResidualArgs<double>& r);
+void residual_chunk_avx512(ConstraintKind kind, const BlockView<double>& b, int begin, int end,
+                           const ResidualArgs<float>& r);
+
 }  // namespace pbdbench

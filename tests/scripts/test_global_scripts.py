@@ -222,6 +222,36 @@ class TimeRuns(unittest.TestCase):
         self.assertEqual(bad.returncode, 2)
         self.assertIn("LABEL=BINARY", bad.stderr)
 
+    def test_series_summed_per_run(self):
+        """--series: the run file's time_* series summed over each run, tabled like the times;
+        a series the run file lacks stops the script with its name."""
+        os.makedirs(TMP, exist_ok=True)
+        out = os.path.join(TMP, "timings_series.json")
+        for path in (out, out + ".2"):
+            if os.path.exists(path):
+                os.remove(path)
+        args = ["--reps", "1", "--solver", "xpbd", "--scene", "hanging_chain:0.05",
+                "--series", "time_residual", "--series", "time_project",
+                "--build", f"on={BIN}", "--build", f"off={BIN} --set solver.xpbd.residuals=false"]
+        r = subprocess.run([PYTHON, os.path.join(SCRIPTS, "time_runs.py"), *args, "--out", out],
+                           capture_output=True, text=True, timeout=300)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(out) as f:
+            record = json.load(f)
+        runs = {x["build"]: x for x in record["runs"]}
+        self.assertGreater(runs["on"]["series_ms"]["time_residual"], 0.0)
+        self.assertEqual(runs["off"]["series_ms"]["time_residual"], 0.0)  # not computed: 0 a step
+        self.assertGreater(runs["off"]["series_ms"]["time_project"], 0.0)
+        self.assertIn("| hanging_chain | on | time_residual |", r.stdout)
+        self.assertIn("| hanging_chain | off | time_project |", r.stdout)
+        missing = subprocess.run([PYTHON, os.path.join(SCRIPTS, "time_runs.py"), "--reps", "1", "--solver",
+                                  "xpbd", "--scene", "hanging_chain:0.05", "--series", "no_such_series",
+                                  "--build", f"on={BIN}", "--out", out + ".2"],
+                                 capture_output=True, text=True, timeout=300)
+        self.assertNotEqual(missing.returncode, 0)
+        self.assertIn("no_such_series", missing.stderr)
+        self.assertFalse(os.path.exists(out + ".2"))
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -1,6 +1,7 @@
 // Tests of solvers/compiled_projection.cpp: the compiled sweeps against the per-item path (the
 // reference implementation: core/constraint_functions.hpp and solvers/kernels.hpp item by item),
-// in every order, both rules and both precisions; the same bits at any thread count; and the
+// in every order, both rules and both precisions; the same bits at any thread count and, kernel
+// by kernel (solvers/projection_kernels.hpp), in every register width; and the
 // sequential order's levels against the one-by-one order of the same kernels.
 #include <gtest/gtest.h>
 
@@ -8,7 +9,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <cstdint>
+#include <cstring>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -17,6 +20,7 @@
 #include "core/fem.hpp"
 #include "core/generators.hpp"
 #include "solver_test_util.hpp"
+#include "solvers/projection_wide.hpp"
 #include "solvers/step_common.hpp"
 
 namespace pbdbench::test {
@@ -270,6 +274,181 @@ TEST(CompiledProjection, LevelsAndColoursAreTheOneByOneOrderBitForBit) {
           EXPECT_EQ(max_abs_diff(a.x, b.x), 0.0);
         }
     }
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// The kernels of solvers/projection_kernels.hpp in every register width this processor has (16
+// bytes always; AVX2 and AVX-512 where present): the same bits. A block of `count` items of one
+// kind, each on particles of its own (as the items of a colour), at random positions, rest
+// values, coefficients and multipliers; 37 items, so that every width ends with a partial pack.
+struct KernelCase {
+  ConstraintKind kind;
+  int arity;
+  std::vector<double> P, X0;                        // (n x kStride)
+  std::array<std::vector<std::int32_t>, 4> particle;
+  std::array<std::vector<double>, 4> inv_mass;
+  std::vector<double> rest, lambda, compliance;
+  std::array<std::vector<double>, 3> coef;
+  std::array<std::vector<double>, 9> rest_inverse;
+  BlockView<double> view() {
+    BlockView<double> v;
+    for (int i = 0; i < arity; ++i) {
+      v.particle[i] = particle[static_cast<size_t>(i)].data();
+      v.inv_mass[i] = inv_mass[static_cast<size_t>(i)].data();
+    }
+    v.rest = rest.data();
+    for (int c = 0; c < 3; ++c) v.coef[c] = coef[static_cast<size_t>(c)].data();
+    for (int k = 0; k < 9; ++k) v.rest_inverse[k] = rest_inverse[static_cast<size_t>(k)].data();
+    v.lambda = lambda.data();
+    return v;
+  }
+};
+
+KernelCase kernel_case(ConstraintKind kind, int count, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), pos(0.05, 1.0);
+  KernelCase c;
+  c.kind = kind;
+  c.arity = kind == ConstraintKind::Distance ? 2 : 4;
+  const int n = c.arity * count;
+  c.P.assign(static_cast<size_t>(kStride * n), 0.0);
+  c.X0.assign(c.P.size(), 0.0);
+  for (int p = 0; p < n; ++p)
+    for (int a = 0; a < 3; ++a) {
+      c.P[static_cast<size_t>(kStride * p + a)] = u(rng);
+      c.X0[static_cast<size_t>(kStride * p + a)] = c.P[static_cast<size_t>(kStride * p + a)] + 0.01 * u(rng);
+    }
+  for (int i = 0; i < c.arity; ++i)
+    for (int s = 0; s < count; ++s) {
+      c.particle[static_cast<size_t>(i)].push_back(c.arity * s + i);
+      c.inv_mass[static_cast<size_t>(i)].push_back(s % 7 == 3 && i == 1 ? 0.0 : pos(rng));
+    }
+  for (int s = 0; s < count; ++s) {
+    c.rest.push_back(kind == ConstraintKind::Bending ? 2.0 * pos(rng) : pos(rng));
+    c.lambda.push_back(s % 5 == 0 ? 0.0 : 0.1 * u(rng));
+    c.compliance.push_back(s % 3 == 0 ? 0.0 : 1e-3 * pos(rng));
+    for (auto& k : c.coef) k.push_back(pos(rng));
+    for (auto& k : c.rest_inverse) k.push_back(u(rng));
+  }
+  return c;
+}
+
+// The register widths this processor runs: 16 always, 32 and 64 where it has them.
+std::vector<int> widths() {
+  std::vector<int> w = {16};
+  if (static_cast<int>(widest_vector_width()) >= 32) w.push_back(32);
+  if (static_cast<int>(widest_vector_width()) >= 64) w.push_back(64);
+  return w;
+}
+
+TEST(ProjectionKernels, EveryWidthGivesTheSameBits) {
+  constexpr int kCount = 37;
+  const std::vector<int> ws = widths();
+  std::cout << "register widths compared: " << ws.size() << " (widest " << ws.back() << " bytes)\n";
+  int compared = 0;
+  for (const ConstraintKind kind : {ConstraintKind::Distance, ConstraintKind::Volume, ConstraintKind::Bending})
+    for (const ProjectionRule rule : {ProjectionRule::Pbd, ProjectionRule::Xpbd})
+      for (const bool damped : {false, true})
+        for (const bool jacobi : {false, true}) {
+          if (damped && rule == ProjectionRule::Pbd) continue;
+          std::vector<double> first_P, first_lambda, first_dx, first_dl;
+          long first_skipped = -1;
+          for (const int w : ws) {
+            KernelCase c = kernel_case(kind, kCount, 7u);
+            std::vector<double> dx(static_cast<size_t>(c.arity * 3 * kCount), -1.0), dl(kCount, -1.0);
+            JacobiBuffers<double> J;
+            if (jacobi) J = {dx.data(), dl.data(), kCount};
+            ChunkSpec spec;
+            spec.rule = rule;
+            spec.kind = kind;
+            spec.anchored = true;  // some items have a particle with w = 0
+            spec.damped = damped;
+            spec.jacobi = jacobi;
+            spec.begin = 0;
+            spec.end = kCount;
+            const BlockView<double> v = c.view();
+            long skipped = 0;
+            if (w == 16) skipped = project_chunk<double, Pack<double, 16>>(spec, v, c.P.data(), c.X0.data(), J);
+            if (w == 32) skipped = project_chunk_avx2(spec, v, c.P.data(), c.X0.data(), J);
+            if (w == 64) skipped = project_chunk_avx512(spec, v, c.P.data(), c.X0.data(), J);
+            if (first_skipped < 0) {
+              first_P = c.P;
+              first_lambda = c.lambda;
+              first_dx = dx;
+              first_dl = dl;
+              first_skipped = skipped;
+              // The kernel moved something (Jacobi: into its buffers).
+              if (jacobi) EXPECT_NE(dx, std::vector<double>(dx.size(), -1.0));
+              else EXPECT_NE(c.P, kernel_case(kind, kCount, 7u).P);
+              continue;
+            }
+            const std::string what = std::to_string(static_cast<int>(kind)) + (rule == ProjectionRule::Xpbd ? " xpbd" : " pbd") +
+                                     (damped ? " damped" : "") + (jacobi ? " jacobi" : "") + ", width " + std::to_string(w);
+            EXPECT_EQ(skipped, first_skipped) << what;
+            // Bit for bit (EXPECT_EQ on vectors of doubles compares with ==; memcmp also sees
+            // the sign of a zero).
+            EXPECT_EQ(0, std::memcmp(c.P.data(), first_P.data(), c.P.size() * sizeof(double))) << what;
+            EXPECT_EQ(0, std::memcmp(c.lambda.data(), first_lambda.data(), c.lambda.size() * sizeof(double))) << what;
+            EXPECT_EQ(0, std::memcmp(dx.data(), first_dx.data(), dx.size() * sizeof(double))) << what;
+            EXPECT_EQ(0, std::memcmp(dl.data(), first_dl.data(), dl.size() * sizeof(double))) << what;
+            ++compared;
+          }
+        }
+  // The residuals (xpbd's eqs. 8 and 9) in every width, and against the per-item formula.
+  for (const ConstraintKind kind : {ConstraintKind::Distance, ConstraintKind::Volume, ConstraintKind::Bending}) {
+    std::vector<double> first_terms, first_g;
+    for (const int w : ws) {
+      KernelCase c = kernel_case(kind, kCount, 11u);
+      const int n = c.arity * kCount;
+      std::vector<char> moving(static_cast<size_t>(n), 1);
+      moving[5] = 0;  // a pinned particle: its g is not written
+      std::vector<double> terms(kCount, -1.0), g(static_cast<size_t>(3 * n), 0.5);
+      ResidualArgs<double> r;
+      r.P = c.P.data();
+      r.compliance = c.compliance.data();
+      r.lambda = c.lambda.data();
+      r.moving = moving.data();
+      r.h2 = 1e-4;
+      r.terms = terms.data();
+      r.g = g.data();
+      const BlockView<double> v = c.view();
+      if (w == 16) residual_chunk<Pack<double, 16>>(kind, v, 0, kCount, r);
+      if (w == 32) residual_chunk_avx2(kind, v, 0, kCount, r);
+      if (w == 64) residual_chunk_avx512(kind, v, 0, kCount, r);
+      EXPECT_EQ(g[3 * 5], 0.5);
+      if (first_terms.empty()) {
+        first_terms = terms;
+        first_g = g;
+        // h_j = C_j + alpha_j / h^2 lambda_j, C_j by the stencil of one item at a time; g of a
+        // particle: 0.5 - lambda_j grad C_j (each particle belongs to one item).
+        for (int s = 0; s < kCount; ++s) {
+          std::array<V3<double>, 4> x;
+          for (int i = 0; i < c.arity; ++i) x[static_cast<size_t>(i)] = load3(c.P.data(), c.particle[static_cast<size_t>(i)][static_cast<size_t>(s)]);
+          const StencilEval<double> e =
+              kind == ConstraintKind::Distance ? distance_stencil(x[0], x[1], c.rest[static_cast<size_t>(s)])
+              : kind == ConstraintKind::Volume ? volume_stencil(x[0], x[1], x[2], x[3], c.rest[static_cast<size_t>(s)])
+                                               : bending_stencil(x[0], x[1], x[2], x[3], c.rest[static_cast<size_t>(s)]);
+          const double lam = c.lambda[static_cast<size_t>(s)];
+          EXPECT_EQ(terms[static_cast<size_t>(s)], e.C + c.compliance[static_cast<size_t>(s)] / 1e-4 * lam);
+          for (int i = 0; i < c.arity; ++i) {
+            const int q = c.particle[static_cast<size_t>(i)][static_cast<size_t>(s)];
+            if (q == 5) continue;
+            const V3<double>& gr = e.grad[static_cast<size_t>(i)];
+            EXPECT_EQ(g[static_cast<size_t>(3 * q)], lam == 0.0 ? 0.5 : 0.5 - lam * gr.x);
+            EXPECT_EQ(g[static_cast<size_t>(3 * q + 2)], lam == 0.0 ? 0.5 : 0.5 - lam * gr.z);
+          }
+        }
+        continue;
+      }
+      EXPECT_EQ(0, std::memcmp(terms.data(), first_terms.data(), terms.size() * sizeof(double))) << w;
+      EXPECT_EQ(0, std::memcmp(g.data(), first_g.data(), g.size() * sizeof(double))) << w;
+      ++compared;
+    }
+  }
+  if (ws.size() > 1) {
+    EXPECT_EQ(compared, static_cast<int>(ws.size() - 1) * (3 * 6 + 3));
+  }
 }
 
 }  // namespace
