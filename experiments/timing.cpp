@@ -12,8 +12,10 @@
 #include <toml++/toml.h>
 
 #include "experiments/provenance.hpp"
+#include "catalog/solver_catalog.hpp"
 #include "experiments/sha256.hpp"
 #include "harness/runner.hpp"
+#include "solver_api/options.hpp"
 
 namespace pbdbench::experiments {
 
@@ -53,14 +55,25 @@ fs::path timing_record_path(const fs::path& runs_dir, const std::string& experim
   return runs_dir / experiment / ("timing-" + group + ".toml");
 }
 
+config::Config timing_config(const Experiment& ex, const RunSpec& run, const TimingSpec& timing, Tier tier) {
+  std::vector<config::Override> sets = ex.timing_overrides(run, timing, tier);
+  config::Config cfg = config::load(ex.scenario_of(run), sets);
+  const SolverEntry* solver = find_solver(cfg.get_string("solver.name"));
+  const OptionRow* threads = find_solver_option("solver.threads");
+  if (solver != nullptr && threads != nullptr && option_applies(*threads, solver->family) &&
+      cfg.at("solver.threads").source.file.empty()) {  // the default: not set by the experiment
+    sets.push_back({"solver.threads", "1"});
+    cfg = config::load(ex.scenario_of(run), sets);
+  }
+  return cfg;
+}
+
 namespace {
 
 std::vector<std::string> config_hashes(const Experiment& ex, const TimingSpec& timing, Tier tier) {
   std::vector<std::string> out;
-  for (const std::string& name : timing.runs) {
-    const RunSpec& run = *ex.find_run(name);
-    out.push_back(sha256_hex(config::load(ex.scenario_of(run), ex.timing_overrides(run, timing, tier)).to_toml()));
-  }
+  for (const std::string& name : timing.runs)
+    out.push_back(sha256_hex(timing_config(ex, *ex.find_run(name), timing, tier).to_toml()));
   return out;
 }
 
@@ -162,10 +175,7 @@ TimingResult time_group(const Experiment& ex, const TimingSpec& timing, Tier tie
   const auto t0 = std::chrono::steady_clock::now();
   const size_t n = timing.runs.size();
   std::vector<config::Config> configs;
-  for (const std::string& name : timing.runs) {
-    const RunSpec& run = *ex.find_run(name);
-    configs.push_back(config::load(ex.scenario_of(run), ex.timing_overrides(run, timing, tier)));
-  }
+  for (const std::string& name : timing.runs) configs.push_back(timing_config(ex, *ex.find_run(name), timing, tier));
   const fs::path dir = runs_dir / ex.id / "timing" / timing.name;
   r.status.assign(n, "complete");
   r.seconds_per_step.clear();

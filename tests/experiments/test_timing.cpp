@@ -1,7 +1,9 @@
-// experiments/timing: the distribution-free interval of the median.
+// experiments/timing: the distribution-free interval of the median; the configuration a run is
+// timed in.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include "experiments/timing.hpp"
 
@@ -37,6 +39,35 @@ TEST(Timing, MedianIntervalFromOrderStatistics) {
   EXPECT_EQ(five.hi, 5);
   EXPECT_NEAR(five.coverage, 1.0 - 2.0 / 32.0, 1e-12);
   EXPECT_TRUE(std::isnan(median_interval({}).median));
+}
+
+// pbd and xpbd are timed on one thread unless the experiment sets solver.threads; a solver that
+// does not read the option is left without it.
+TEST(Timing, PbdAndXpbdAreTimedOnOneThreadUnlessTheExperimentSaysOtherwise) {
+  namespace fs = std::filesystem;
+  const fs::path root(PBDBENCH_SOURCE_DIR);
+  Experiment cloth = load_experiment(root / "reproductions" / "experiments" / "xpbd2016_cloth.toml");
+  ASSERT_FALSE(cloth.timings.empty());
+  const TimingSpec& cost = cloth.timings.front();
+  for (const std::string& name : {std::string("pbd_20"), std::string("xpbd_20")}) {
+    const config::Config cfg = timing_config(cloth, *cloth.find_run(name), cost, Tier::Full);
+    EXPECT_EQ(cfg.get_int("solver.threads"), 1) << name;
+    // The other runs of the experiment keep the default.
+    EXPECT_EQ(config::load(cloth.scenario_of(*cloth.find_run(name)), cloth.overrides(*cloth.find_run(name), Tier::Full, 0))
+                  .get_int("solver.threads"),
+              0)
+        << name;
+  }
+  cloth.set.push_back({"solver.threads", "2"});
+  EXPECT_EQ(timing_config(cloth, *cloth.find_run("xpbd_20"), cost, Tier::Full).get_int("solver.threads"), 2);
+
+  const Experiment bowl = load_experiment(root / "claims" / "experiments" / "S5.4.toml");
+  ASSERT_FALSE(bowl.timings.empty());
+  const config::Config cg = timing_config(bowl, *bowl.find_run("bowl_global_cg"), bowl.timings.front(), Tier::Full);
+  EXPECT_EQ(cg.get_string("solver.name"), "global-cg");
+  EXPECT_TRUE(cg.at("solver.threads").source.file.empty());  // the default, not set for it
+  const config::Config seq = timing_config(bowl, *bowl.find_run("bowl_sequential"), bowl.timings.front(), Tier::Full);
+  EXPECT_EQ(seq.get_int("solver.threads"), 1);
 }
 
 }  // namespace
