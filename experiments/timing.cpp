@@ -11,8 +11,8 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
-#include "experiments/provenance.hpp"
 #include "catalog/solver_catalog.hpp"
+#include "experiments/provenance.hpp"
 #include "experiments/sha256.hpp"
 #include "harness/runner.hpp"
 #include "solver_api/options.hpp"
