@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -76,6 +77,8 @@ class Program final : public CompiledProjection {
         averaging_(options.jacobi_averaging),
         particles_(model.particle_count()),
         items_(model.constraint_count()) {
+    if (particles_ > std::numeric_limits<std::int32_t>::max() / kStride)
+      throw std::length_error("compiled projection: more particles than offsets of 32 bits address");
     bool negative_mass = false;
     moving_.resize(static_cast<size_t>(particles_));
     for (int p = 0; p < particles_; ++p) {
@@ -313,7 +316,7 @@ class Program final : public CompiledProjection {
     const KindBlock<T>& b = blocks_[static_cast<size_t>(k)];
     if (begin >= end) return;
     BlockView<double> v;
-    for (int i = 0; i < b.arity; ++i) v.particle[i] = b.particle[static_cast<size_t>(i)].data();
+    for (int i = 0; i < b.arity; ++i) v.offset[i] = b.offset[static_cast<size_t>(i)].data();
     v.rest = b.rest_double.data();
     for (int n = 0; n < 9; ++n) v.rest_inverse[n] = b.rest_inverse_double[static_cast<size_t>(n)].data();
     ResidualArgs<T> r;
@@ -430,7 +433,7 @@ class Program final : public CompiledProjection {
       b.rest_double.push_back(c.rest);
       for (int i = 0; i < b.arity; ++i) {
         const int p = c.particles[static_cast<size_t>(i)];
-        b.particle[static_cast<size_t>(i)].push_back(p);
+        b.offset[static_cast<size_t>(i)].push_back(kStride * p);
         b.inv_mass[static_cast<size_t>(i)].push_back(static_cast<T>(model.inv_mass[static_cast<size_t>(p)]));
       }
       // pbd: the explicit k (solver.pbd.material = stiffness), or 1 until set_substep derives

@@ -25,6 +25,7 @@
 #include <array>
 #include <cstdint>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "core/constraint_kind.hpp"
@@ -52,7 +53,8 @@ struct KindBlock {
   ConstraintKind kind = ConstraintKind::Distance;
   int arity = 0;
   int count = 0;
-  std::array<std::vector<std::int32_t>, 4> particle;  // [i] (count): the i-th particle's index
+  std::array<std::vector<std::int32_t>, 4> offset;    // [i] (count): kStride x the i-th particle's
+                                                      // index, where it starts in a positions array
   std::array<std::vector<T>, 4> inv_mass;             // [i] (count) 1/kg
   std::vector<T> rest;                                // (count) rest value, units of C
   std::array<std::vector<T>, kCoefficients> coef;     // [c] (count), see above
@@ -83,7 +85,7 @@ inline void store3(T* P, std::int32_t p, const V3<T>& v) {
 // solvers/projection_wide.hpp take only this).
 template <class T>
 struct BlockView {
-  const std::int32_t* particle[4] = {};
+  const std::int32_t* offset[4] = {};  // kStride x particle index (KindBlock::offset)
   const T* inv_mass[4] = {};
   const T* rest = nullptr;
   const T* coef[KindBlock<T>::kCoefficients] = {};
@@ -94,7 +96,7 @@ template <class T>
 inline BlockView<T> view(KindBlock<T>& b) {
   BlockView<T> v;
   for (int i = 0; i < 4; ++i) {
-    v.particle[i] = b.particle[static_cast<size_t>(i)].data();
+    v.offset[i] = b.offset[static_cast<size_t>(i)].data();
     v.inv_mass[i] = b.inv_mass[static_cast<size_t>(i)].data();
   }
   v.rest = b.rest.data();
@@ -129,7 +131,8 @@ struct JacobiBuffers {
 // Lanes: the items s .. s + n - 1 in the lanes of a pack W. A full pack has n = W::kWidth; the
 // last pack of a run may be partial (Partial): its lanes from n on repeat lane 0's item, so that
 // they read only what lane 0 reads (nothing another thread may be writing), and nothing is
-// written for them. Lane k of an array value is a[k]; of a position, the particle idx[k].
+// written for them. Lane k of an array value is a[k]; of a position, the particle that starts at
+// P + idx[k] (idx: a block's offsets, kStride x the particle's index).
 
 #define PBDBENCH_INLINE_LAMBDA __attribute__((always_inline))
 
@@ -156,27 +159,89 @@ struct Lanes {
       v.store(a);
     }
   }
-  // Particles are gathered one value at a time: moving each as one 4-vector and transposing with
-  // shuffles was measured slower (docs/performance.md).
+  // Particles of double packs move as 16-byte halves, (x, y) and (z, 0): the halves of the
+  // even lanes' particles side by side in one pack, the odd lanes' in another, then unpacked
+  // into x, y and z (and back for the stores, the fourth scalar written as the 0 it is; a pack
+  // whose lanes are all written stores without testing each). Values one at a time made every
+  // lane two loads and a shuffle; one 32-byte vector a particle and a full transpose was
+  // measured slower (docs/performance.md, "Session 31"). Float packs take one value at a time.
+  // Only data moves: the same bits either way.
+  static constexpr bool kHalves = std::is_same_v<T, double> && (kWidth == 2 || kWidth == 4 || kWidth == 8);
+  typedef T Half __attribute__((vector_size(16), aligned(sizeof(T))));
   PBDBENCH_INLINE V3<L> position(const T* P, const std::int32_t* idx) const {
     V3<L> out;
-    for (int k = 0; k < kWidth; ++k) {
-      const T* q = P + static_cast<std::ptrdiff_t>(kStride) * idx[lane(k)];
-      out.x.set(k, q[0]);
-      out.y.set(k, q[1]);
-      out.z.set(k, q[2]);
+    if constexpr (kHalves) {
+      // Half h (0: x, y; 1: z, 0) of the particles of lanes first, first + 2, ... in one pack.
+      const auto halves = [&](int first, int h) PBDBENCH_INLINE_LAMBDA {
+        const auto at = [&](int k) PBDBENCH_INLINE_LAMBDA {
+          return reinterpret_cast<const Half*>(P + idx[lane(k)])[h];
+        };
+        if constexpr (kWidth == 2) {
+          return at(first);
+        } else if constexpr (kWidth == 4) {
+          return __builtin_shufflevector(at(first), at(first + 2), 0, 1, 2, 3);
+        } else {
+          const auto lo = __builtin_shufflevector(at(first), at(first + 2), 0, 1, 2, 3);
+          const auto hi = __builtin_shufflevector(at(first + 4), at(first + 6), 0, 1, 2, 3);
+          return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+        }
+      };
+      const auto xy_even = halves(0, 0), xy_odd = halves(1, 0);
+      out.x = L::of(unpack_lo(xy_even, xy_odd));
+      out.y = L::of(unpack_hi(xy_even, xy_odd));
+      out.z = L::of(unpack_lo(halves(0, 1), halves(1, 1)));
+    } else {
+      for (int k = 0; k < kWidth; ++k) {
+        const T* q = P + idx[lane(k)];
+        out.x.set(k, q[0]);
+        out.y.set(k, q[1]);
+        out.z.set(k, q[2]);
+      }
     }
     return out;
   }
   PBDBENCH_INLINE void store(T* P, const std::int32_t* idx, const V3<L>& v, int lanes) const {
     lanes &= active();
-    for (int k = 0; k < kWidth; ++k) {
-      if (!((lanes >> k) & 1)) continue;
-      T* q = P + static_cast<std::ptrdiff_t>(kStride) * idx[k];
-      q[0] = v.x[k];
-      q[1] = v.y[k];
-      q[2] = v.z[k];
+    if constexpr (kHalves) {
+      using V = typename L::V;
+      const V zero{};
+      const V xy[2] = {unpack_lo(v.x.v, v.y.v), unpack_hi(v.x.v, v.y.v)};  // even lanes, odd lanes
+      const V z[2] = {unpack_lo(v.z.v, zero), unpack_hi(v.z.v, zero)};
+      // Lane K's particle; with Every (all lanes written, as nearly always) without testing it.
+      const auto put = [&]<int K, bool Every>() PBDBENCH_INLINE_LAMBDA {
+        if (!Every && !((lanes >> K) & 1)) return;
+        Half* q = reinterpret_cast<Half*>(P + idx[K]);
+        constexpr int j = K & ~1;
+        q[0] = __builtin_shufflevector(xy[K & 1], xy[K & 1], j, j + 1);
+        q[1] = __builtin_shufflevector(z[K & 1], z[K & 1], j, j + 1);
+      };
+      const auto put_lanes = [&]<bool Every, int... K>(std::integer_sequence<int, K...>) PBDBENCH_INLINE_LAMBDA {
+        (put.template operator()<K, Every>(), ...);
+      };
+      if (lanes == (1 << kWidth) - 1) put_lanes.template operator()<true>(std::make_integer_sequence<int, kWidth>{});
+      else put_lanes.template operator()<false>(std::make_integer_sequence<int, kWidth>{});
+    } else {
+      for (int k = 0; k < kWidth; ++k) {
+        if (!((lanes >> k) & 1)) continue;
+        T* q = P + idx[k];
+        q[0] = v.x[k];
+        q[1] = v.y[k];
+        q[2] = v.z[k];
+      }
     }
+  }
+  // Lanes (a0, b0, a2, b2, ...) and (a1, b1, a3, b3, ...) of two packs (unpcklpd, unpckhpd).
+  template <class V>
+  static PBDBENCH_INLINE V unpack_lo(const V& a, const V& b) {
+    if constexpr (kWidth == 2) return __builtin_shufflevector(a, b, 0, 2);
+    else if constexpr (kWidth == 4) return __builtin_shufflevector(a, b, 0, 4, 2, 6);
+    else return __builtin_shufflevector(a, b, 0, 8, 2, 10, 4, 12, 6, 14);
+  }
+  template <class V>
+  static PBDBENCH_INLINE V unpack_hi(const V& a, const V& b) {
+    if constexpr (kWidth == 2) return __builtin_shufflevector(a, b, 1, 3);
+    else if constexpr (kWidth == 4) return __builtin_shufflevector(a, b, 1, 5, 3, 7);
+    else return __builtin_shufflevector(a, b, 1, 9, 3, 11, 5, 13, 7, 15);
   }
   // The lanes of a mask as bits, the inactive ones clear.
   template <class M>
@@ -224,7 +289,7 @@ inline long pbd_distance(const BlockView<T>& b, int begin, int end, T* P, const 
   return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
     using Ln = decltype(ln);
     using L = typename Ln::L;
-    const V3<L> x0 = ln.position(P, b.particle[0] + s), x1 = ln.position(P, b.particle[1] + s);
+    const V3<L> x0 = ln.position(P, b.offset[0] + s), x1 = ln.position(P, b.offset[1] + s);
     const V3<L> d = x1 - x0;
     const L len = lane_sqrt(dot(d, d));
     const auto ok = len > L(T(0));
@@ -241,8 +306,8 @@ inline long pbd_distance(const BlockView<T>& b, int begin, int end, T* P, const 
         write0 &= ln.bits(ln.value(b.inv_mass[0] + s) != L(T(0)));
         write1 &= ln.bits(ln.value(b.inv_mass[1] + s) != L(T(0)));
       }
-      ln.store(P, b.particle[0] + s, x0 + a0 * d, write0);
-      ln.store(P, b.particle[1] + s, x1 - a1 * d, write1);
+      ln.store(P, b.offset[0] + s, x0 + a0 * d, write0);
+      ln.store(P, b.offset[1] + s, x1 - a1 * d, write1);
     }
     return ln.skipped(valid);
   });
@@ -273,7 +338,7 @@ inline long pbd_four(const BlockView<T>& b, int begin, int end, T* P, const Jaco
     V3<L> x[4];
     L ws[4];
     for (int i = 0; i < 4; ++i) {
-      x[i] = ln.position(P, b.particle[i] + s);
+      x[i] = ln.position(P, b.offset[i] + s);
       ws[i] = ln.value(b.inv_mass[i] + s);
     }
     const StencilEval<L> e = eval4<Kind>(b, s, x, ln);
@@ -286,7 +351,7 @@ inline long pbd_four(const BlockView<T>& b, int begin, int end, T* P, const Jaco
     for (int i = 0; i < 4; ++i) {
       const V3<L> dx = -((scale * ws[i]) * e.grad[static_cast<size_t>(i)]);
       if constexpr (Jacobi) put_correction(ln, J, s, i, ok, dx);
-      else ln.store(P, b.particle[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
+      else ln.store(P, b.offset[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
     }
     return ln.skipped(valid);
   });
@@ -301,7 +366,7 @@ inline long xpbd_distance(const BlockView<T>& b, int begin, int end, T* P, const
   return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
     using Ln = decltype(ln);
     using L = typename Ln::L;
-    const V3<L> x0 = ln.position(P, b.particle[0] + s), x1 = ln.position(P, b.particle[1] + s);
+    const V3<L> x0 = ln.position(P, b.offset[0] + s), x1 = ln.position(P, b.offset[1] + s);
     const V3<L> d = x1 - x0;
     const L len = lane_sqrt(dot(d, d));
     const L inv_d = ln.value(b.coef[2] + s);  // 1/D, 0 when D <= 0
@@ -311,7 +376,7 @@ inline long xpbd_distance(const BlockView<T>& b, int begin, int end, T* P, const
     const L lam = ln.value(b.lambda + s);
     L num = -(len - ln.value(b.rest + s)) - ln.value(b.coef[0] + s) * lam;
     if constexpr (Damped) {
-      const V3<L> motion = (x1 - ln.position(X0, b.particle[1] + s)) - (x0 - ln.position(X0, b.particle[0] + s));
+      const V3<L> motion = (x1 - ln.position(X0, b.offset[1] + s)) - (x0 - ln.position(X0, b.offset[0] + s));
       num = num - ln.value(b.coef[1] + s) * (dot(d, motion) * inv_len);
     }
     const L dlambda = lane_select(ok, num * inv_d, zero);
@@ -330,8 +395,8 @@ inline long xpbd_distance(const BlockView<T>& b, int begin, int end, T* P, const
         write0 &= ln.bits(w0 != zero);
         write1 &= ln.bits(w1 != zero);
       }
-      ln.store(P, b.particle[0] + s, x0 - q0 * d, write0);
-      ln.store(P, b.particle[1] + s, x1 + q1 * d, write1);
+      ln.store(P, b.offset[0] + s, x0 - q0 * d, write0);
+      ln.store(P, b.offset[1] + s, x1 + q1 * d, write1);
     }
     return ln.skipped(valid);
   });
@@ -346,7 +411,7 @@ inline long xpbd_four(const BlockView<T>& b, int begin, int end, T* P, const T* 
     V3<L> x[4];
     L ws[4];
     for (int i = 0; i < 4; ++i) {
-      x[i] = ln.position(P, b.particle[i] + s);
+      x[i] = ln.position(P, b.offset[i] + s);
       ws[i] = ln.value(b.inv_mass[i] + s);
     }
     const StencilEval<L> e = eval4<Kind>(b, s, x, ln);
@@ -361,7 +426,7 @@ inline long xpbd_four(const BlockView<T>& b, int begin, int end, T* P, const T* 
     if constexpr (Damped) {
       L rate = zero;
       for (int i = 0; i < 4; ++i)
-        rate = rate + dot(e.grad[static_cast<size_t>(i)], x[i] - ln.position(X0, b.particle[i] + s));
+        rate = rate + dot(e.grad[static_cast<size_t>(i)], x[i] - ln.position(X0, b.offset[i] + s));
       num = num - gamma * rate;
     }
     const L dlambda = lane_select(ok, num / lane_select(ok, denom, L(T(1))), zero);
@@ -371,7 +436,7 @@ inline long xpbd_four(const BlockView<T>& b, int begin, int end, T* P, const T* 
     for (int i = 0; i < 4; ++i) {
       const V3<L> dx = (ws[i] * dlambda) * e.grad[static_cast<size_t>(i)];
       if constexpr (Jacobi) put_correction(ln, J, s, i, ok, dx);
-      else ln.store(P, b.particle[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
+      else ln.store(P, b.offset[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
     }
     return ln.skipped(valid);
   });
@@ -460,7 +525,7 @@ inline void residual_items(const BlockView<double>& b, int begin, int end, const
   over_items<double, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
     using L = typename decltype(ln)::L;
     V3<L> x[4];
-    for (int i = 0; i < kArity; ++i) x[i] = ln.position(r.P, b.particle[i] + s);
+    for (int i = 0; i < kArity; ++i) x[i] = ln.position(r.P, b.offset[i] + s);
     StencilEval<L> e;
     if constexpr (Kind == ConstraintKind::Distance) e = distance_stencil(x[0], x[1], ln.value(b.rest + s));
     else e = eval4<Kind>(b, s, x, ln);
@@ -473,7 +538,7 @@ inline void residual_items(const BlockView<double>& b, int begin, int end, const
     for (int k = 0; k < W::kWidth; ++k) {
       if (!((lanes >> k) & 1)) continue;
       for (int i = 0; i < kArity; ++i) {
-        const std::int32_t q = b.particle[i][s + k];
+        const std::int32_t q = b.offset[i][s + k] / kStride;
         if (!r.moving[q]) continue;
         double* gq = r.g + 3 * static_cast<std::ptrdiff_t>(q);
         gq[0] -= term[i].x[k];

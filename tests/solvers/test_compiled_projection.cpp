@@ -286,7 +286,7 @@ struct KernelCase {
   ConstraintKind kind;
   int arity;
   std::vector<double> P, X0;                        // (n x kStride)
-  std::array<std::vector<std::int32_t>, 4> particle;
+  std::array<std::vector<std::int32_t>, 4> offset;  // kStride x particle index
   std::array<std::vector<double>, 4> inv_mass;
   std::vector<double> rest, lambda, compliance;
   std::array<std::vector<double>, 3> coef;
@@ -294,7 +294,7 @@ struct KernelCase {
   BlockView<double> view() {
     BlockView<double> v;
     for (int i = 0; i < arity; ++i) {
-      v.particle[i] = particle[static_cast<size_t>(i)].data();
+      v.offset[i] = offset[static_cast<size_t>(i)].data();
       v.inv_mass[i] = inv_mass[static_cast<size_t>(i)].data();
     }
     v.rest = rest.data();
@@ -321,7 +321,7 @@ KernelCase kernel_case(ConstraintKind kind, int count, unsigned seed) {
     }
   for (int i = 0; i < c.arity; ++i)
     for (int s = 0; s < count; ++s) {
-      c.particle[static_cast<size_t>(i)].push_back(c.arity * s + i);
+      c.offset[static_cast<size_t>(i)].push_back(kStride * (c.arity * s + i));
       c.inv_mass[static_cast<size_t>(i)].push_back(s % 7 == 3 && i == 1 ? 0.0 : pos(rng));
     }
   for (int s = 0; s < count; ++s) {
@@ -424,7 +424,7 @@ TEST(ProjectionKernels, EveryWidthGivesTheSameBits) {
         // particle: 0.5 - lambda_j grad C_j (each particle belongs to one item).
         for (int s = 0; s < kCount; ++s) {
           std::array<V3<double>, 4> x;
-          for (int i = 0; i < c.arity; ++i) x[static_cast<size_t>(i)] = load3(c.P.data(), c.particle[static_cast<size_t>(i)][static_cast<size_t>(s)]);
+          for (int i = 0; i < c.arity; ++i) x[static_cast<size_t>(i)] = load3(c.P.data(), c.offset[static_cast<size_t>(i)][static_cast<size_t>(s)] / kStride);
           const StencilEval<double> e =
               kind == ConstraintKind::Distance ? distance_stencil(x[0], x[1], c.rest[static_cast<size_t>(s)])
               : kind == ConstraintKind::Volume ? volume_stencil(x[0], x[1], x[2], x[3], c.rest[static_cast<size_t>(s)])
@@ -432,7 +432,7 @@ TEST(ProjectionKernels, EveryWidthGivesTheSameBits) {
           const double lam = c.lambda[static_cast<size_t>(s)];
           EXPECT_EQ(terms[static_cast<size_t>(s)], e.C + c.compliance[static_cast<size_t>(s)] / 1e-4 * lam);
           for (int i = 0; i < c.arity; ++i) {
-            const int q = c.particle[static_cast<size_t>(i)][static_cast<size_t>(s)];
+            const int q = c.offset[static_cast<size_t>(i)][static_cast<size_t>(s)] / kStride;
             if (q == 5) continue;
             const V3<double>& gr = e.grad[static_cast<size_t>(i)];
             EXPECT_EQ(g[static_cast<size_t>(3 * q)], lam == 0.0 ? 0.5 : 0.5 - lam * gr.x);
