@@ -3,6 +3,11 @@
 // in every order, both rules and both precisions; the same bits at any thread count and, kernel
 // by kernel (solvers/projection_kernels.hpp), in every register width; and the
 // sequential order's levels against the one-by-one order of the same kernels.
+// ProjectionKernels.LanesGatherAndStoreEachLanesParticle instantiates 32- and 64-byte packs in this
+// file, compiled for any x86-64: GCC notes that such vectors would be passed differently between
+// files built with and without AVX. They never leave this file.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -340,6 +345,68 @@ std::vector<int> widths() {
   if (static_cast<int>(widest_vector_width()) >= 32) w.push_back(32);
   if (static_cast<int>(widest_vector_width()) >= 64) w.push_back(64);
   return w;
+}
+
+// Lanes::position and Lanes::store (solvers/projection_kernels.hpp) in packs of every width, 64
+// bytes included (GCC's generic vectors, lowered to the registers this file is compiled for, so
+// that the 8-lane shuffles are checked on any processor): lane k holds the coordinates of the
+// particle at offset idx[k], full and partial packs; a store writes x, y, z of the lanes asked for,
+// the fourth scalar 0, and no other particle.
+template <class T, int Bytes, bool Partial>
+void check_lanes(int n_active) {
+  using W = Pack<T, Bytes>;
+  using Ln = Lanes<T, W, Partial>;
+  constexpr int kW = W::kWidth;
+  const int particles = 3 * kW + 5;
+  std::vector<T> P(static_cast<size_t>(kStride * particles), T(0));
+  for (int p = 0; p < particles; ++p)
+    for (int a = 0; a < 3; ++a) P[static_cast<size_t>(kStride * p + a)] = static_cast<T>(10 * p + a + 1);
+  // The lanes' particles: distinct, out of order.
+  std::vector<std::int32_t> idx;
+  for (int k = 0; k < kW; ++k) idx.push_back(kStride * ((7 * k + 3) % particles));
+  Ln ln;
+  if constexpr (Partial) ln.n = n_active;
+  const V3<W> x = ln.position(P.data(), idx.data());
+  for (int k = 0; k < kW; ++k) {
+    const int p = idx[static_cast<size_t>(Partial && k >= n_active ? 0 : k)] / kStride;
+    EXPECT_EQ(x.x[k], static_cast<T>(10 * p + 1)) << Bytes << " bytes, lane " << k;
+    EXPECT_EQ(x.y[k], static_cast<T>(10 * p + 2)) << Bytes << " bytes, lane " << k;
+    EXPECT_EQ(x.z[k], static_cast<T>(10 * p + 3)) << Bytes << " bytes, lane " << k;
+  }
+  // Store lane k's particle moved by -(k + 1) in x, -(k + 1) / 2 in y, -(k + 1) / 4 in z, for the
+  // lanes of a mask that leaves out lane 1 (and every lane, below).
+  for (const int mask : {(1 << kW) - 1 - 2, (1 << kW) - 1}) {
+    std::vector<T> Q = P;
+    V3<W> y{W(T(0)), W(T(0)), W(T(0))};
+    for (int k = 0; k < kW; ++k) {
+      y.x.set(k, x.x[k] - static_cast<T>(k + 1));
+      y.y.set(k, x.y[k] - static_cast<T>(k + 1) / 2);
+      y.z.set(k, x.z[k] - static_cast<T>(k + 1) / 4);
+    }
+    ln.store(Q.data(), idx.data(), y, mask);
+    std::vector<T> expected = P;
+    for (int k = 0; k < (Partial ? n_active : kW); ++k) {
+      if (!((mask >> k) & 1)) continue;
+      const size_t o = static_cast<size_t>(idx[static_cast<size_t>(k)]);
+      expected[o] = y.x[k];
+      expected[o + 1] = y.y[k];
+      expected[o + 2] = y.z[k];
+    }
+    EXPECT_EQ(Q, expected) << Bytes << " bytes, " << (Partial ? n_active : kW) << " lanes, mask " << mask;
+  }
+}
+
+TEST(ProjectionKernels, LanesGatherAndStoreEachLanesParticle) {
+  check_lanes<double, 16, false>(0);
+  check_lanes<double, 32, false>(0);
+  check_lanes<double, 64, false>(0);
+  check_lanes<float, 16, false>(0);
+  check_lanes<float, 32, false>(0);
+  check_lanes<float, 64, false>(0);
+  for (int n = 1; n < 2; ++n) check_lanes<double, 16, true>(n);
+  for (int n = 1; n < 4; ++n) check_lanes<double, 32, true>(n);
+  for (int n = 1; n < 8; ++n) check_lanes<double, 64, true>(n);
+  for (int n = 1; n < 8; ++n) check_lanes<float, 32, true>(n);
 }
 
 TEST(ProjectionKernels, EveryWidthGivesTheSameBits) {
