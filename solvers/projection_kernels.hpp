@@ -164,15 +164,17 @@ struct Lanes {
   // into x, y and z (and back for the stores, the fourth scalar written as the 0 it is; a pack
   // whose lanes are all written stores without testing each). Values one at a time made every
   // lane two loads and a shuffle; one 32-byte vector a particle and a full transpose was
-  // measured slower (docs/performance.md, "Session 31"). Float packs take one value at a time.
-  // Only data moves: the same bits either way.
+  // measured slower (docs/performance.md, "Session 31"). Float packs move a particle as one
+  // 16-byte quarter (x, y, z, 0), four lanes' quarters transposed in each 16-byte block of the
+  // pack. Only data moves: the same bits either way.
   static constexpr bool kHalves = std::is_same_v<T, double> && (kWidth == 2 || kWidth == 4 || kWidth == 8);
+  static constexpr bool kQuarters = std::is_same_v<T, float> && (kWidth == 4 || kWidth == 8 || kWidth == 16);
   typedef T Half __attribute__((vector_size(16), aligned(sizeof(T))));
   PBDBENCH_INLINE V3<L> position(const T* P, const std::int32_t* idx) const {
     V3<L> out;
     if constexpr (kHalves) {
       // Half h (0: x, y; 1: z, 0) of the particles of lanes first, first + 2, ... in one pack.
-      const auto halves = [&](int first, int h) PBDBENCH_INLINE_LAMBDA {
+      const auto halves = [&](int first, int h) PBDBENCH_INLINE_LAMBDA -> typename L::V {
         const auto at = [&](int k) PBDBENCH_INLINE_LAMBDA {
           return reinterpret_cast<const Half*>(P + idx[lane(k)])[h];
         };
@@ -190,6 +192,26 @@ struct Lanes {
       out.x = L::of(unpack_lo(xy_even, xy_odd));
       out.y = L::of(unpack_hi(xy_even, xy_odd));
       out.z = L::of(unpack_lo(halves(0, 1), halves(1, 1)));
+    } else if constexpr (kQuarters) {
+      // The particles of lanes k, k + 4, ... in the blocks of one pack: block b of quarters(k)
+      // is lane 4 b + k's (x, y, z, 0).
+      const auto quarters = [&](int k) PBDBENCH_INLINE_LAMBDA -> typename L::V {
+        const auto at = [&](int l) PBDBENCH_INLINE_LAMBDA { return *reinterpret_cast<const Half*>(P + idx[lane(l)]); };
+        if constexpr (kWidth == 4) {
+          return at(k);
+        } else if constexpr (kWidth == 8) {
+          return __builtin_shufflevector(at(k), at(k + 4), 0, 1, 2, 3, 4, 5, 6, 7);
+        } else {
+          const auto lo = __builtin_shufflevector(at(k), at(k + 4), 0, 1, 2, 3, 4, 5, 6, 7);
+          const auto hi = __builtin_shufflevector(at(k + 8), at(k + 12), 0, 1, 2, 3, 4, 5, 6, 7);
+          return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        }
+      };
+      const auto q0 = quarters(0), q1 = quarters(1), q2 = quarters(2), q3 = quarters(3);
+      const auto xy01 = mix<Mix::LoPairs>(q0, q1), xy23 = mix<Mix::LoPairs>(q2, q3);
+      out.x = L::of(mix<Mix::LoHalves>(xy01, xy23));
+      out.y = L::of(mix<Mix::HiHalves>(xy01, xy23));
+      out.z = L::of(mix<Mix::LoHalves>(mix<Mix::HiPairs>(q0, q1), mix<Mix::HiPairs>(q2, q3)));
     } else {
       for (int k = 0; k < kWidth; ++k) {
         const T* q = P + idx[lane(k)];
@@ -220,6 +242,24 @@ struct Lanes {
       };
       if (lanes == (1 << kWidth) - 1) put_lanes.template operator()<true>(std::make_integer_sequence<int, kWidth>{});
       else put_lanes.template operator()<false>(std::make_integer_sequence<int, kWidth>{});
+    } else if constexpr (kQuarters) {
+      using V = typename L::V;
+      const V zero{};
+      const V xy01 = mix<Mix::LoPairs>(v.x.v, v.y.v), xy23 = mix<Mix::HiPairs>(v.x.v, v.y.v);
+      const V z01 = mix<Mix::LoPairs>(v.z.v, zero), z23 = mix<Mix::HiPairs>(v.z.v, zero);
+      // Block b of q[k]: lane 4 b + k's (x, y, z, 0).
+      const V q[4] = {mix<Mix::LoHalves>(xy01, z01), mix<Mix::HiHalves>(xy01, z01),
+                      mix<Mix::LoHalves>(xy23, z23), mix<Mix::HiHalves>(xy23, z23)};
+      const auto put = [&]<int K, bool Every>() PBDBENCH_INLINE_LAMBDA {
+        if (!Every && !((lanes >> K) & 1)) return;
+        constexpr int b = K / 4 * 4;
+        *reinterpret_cast<Half*>(P + idx[K]) = __builtin_shufflevector(q[K % 4], q[K % 4], b, b + 1, b + 2, b + 3);
+      };
+      const auto put_lanes = [&]<bool Every, int... K>(std::integer_sequence<int, K...>) PBDBENCH_INLINE_LAMBDA {
+        (put.template operator()<K, Every>(), ...);
+      };
+      if (lanes == (1 << kWidth) - 1) put_lanes.template operator()<true>(std::make_integer_sequence<int, kWidth>{});
+      else put_lanes.template operator()<false>(std::make_integer_sequence<int, kWidth>{});
     } else {
       for (int k = 0; k < kWidth; ++k) {
         if (!((lanes >> k) & 1)) continue;
@@ -242,6 +282,23 @@ struct Lanes {
     if constexpr (kWidth == 2) return __builtin_shufflevector(a, b, 1, 3);
     else if constexpr (kWidth == 4) return __builtin_shufflevector(a, b, 1, 5, 3, 7);
     else return __builtin_shufflevector(a, b, 1, 9, 3, 11, 5, 13, 7, 15);
+  }
+  // Within each block of four lanes of two packs a, b: (a0, b0, a1, b1), (a2, b2, a3, b3),
+  // (a0, a1, b0, b1), (a2, a3, b2, b3) (unpcklps, unpckhps, movlhps, movhlps).
+  enum class Mix { LoPairs, HiPairs, LoHalves, HiHalves };
+  template <Mix M>
+  static constexpr int mix_index(int i) {
+    const int block = i / 4 * 4, j = i % 4;
+    if (M == Mix::LoPairs) return block + j / 2 + (j % 2 ? kWidth : 0);
+    if (M == Mix::HiPairs) return block + 2 + j / 2 + (j % 2 ? kWidth : 0);
+    if (M == Mix::LoHalves) return block + (j < 2 ? j : kWidth + j - 2);
+    return block + 2 + (j < 2 ? j : kWidth + j - 2);
+  }
+  template <Mix M, class V>
+  static PBDBENCH_INLINE V mix(const V& a, const V& b) {
+    return [&]<int... I>(std::integer_sequence<int, I...>) PBDBENCH_INLINE_LAMBDA {
+      return __builtin_shufflevector(a, b, mix_index<M>(I)...);
+    }(std::make_integer_sequence<int, kWidth>{});
   }
   // The lanes of a mask as bits, the inactive ones clear.
   template <class M>

@@ -406,7 +406,9 @@ TEST(ProjectionKernels, LanesGatherAndStoreEachLanesParticle) {
   for (int n = 1; n < 2; ++n) check_lanes<double, 16, true>(n);
   for (int n = 1; n < 4; ++n) check_lanes<double, 32, true>(n);
   for (int n = 1; n < 8; ++n) check_lanes<double, 64, true>(n);
+  for (int n = 1; n < 4; ++n) check_lanes<float, 16, true>(n);
   for (int n = 1; n < 8; ++n) check_lanes<float, 32, true>(n);
+  for (int n = 1; n < 16; ++n) check_lanes<float, 64, true>(n);
 }
 
 TEST(ProjectionKernels, EveryWidthGivesTheSameBits) {
