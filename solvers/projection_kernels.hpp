@@ -159,20 +159,31 @@ struct Lanes {
       v.store(a);
     }
   }
-  // Particles of double packs move as 16-byte halves, (x, y) and (z, 0): the halves of the
-  // even lanes' particles side by side in one pack, the odd lanes' in another, then unpacked
-  // into x, y and z (and back for the stores, the fourth scalar written as the 0 it is; a pack
-  // whose lanes are all written stores without testing each). Values one at a time made every
-  // lane two loads and a shuffle; one 32-byte vector a particle and a full transpose was
-  // measured slower (docs/performance.md, "Session 31"). Float packs move a particle as one
-  // 16-byte quarter (x, y, z, 0), four lanes' quarters transposed in each 16-byte block of the
-  // pack. Only data moves: the same bits either way.
-  static constexpr bool kHalves = std::is_same_v<T, double> && (kWidth == 2 || kWidth == 4 || kWidth == 8);
+  // A particle's coordinates move as whole vectors, transposed into x, y and z (and back for
+  // the stores, the fourth scalar written as the 0 it is; a pack whose lanes are all written
+  // stores without testing each): in 4-lane double packs (AVX2) one 32-byte vector a particle;
+  // in 2- and 8-lane double packs two 16-byte halves, (x, y) and (z, 0), the even lanes' side by
+  // side in one pack and the odd lanes' in another, then unpacked; in float packs one 16-byte
+  // quarter (x, y, z, 0), four lanes' quarters transposed in each 16-byte block of the pack.
+  // Values one at a time made every lane three loads and inserts (docs/performance.md, "Session
+  // 31"). Only data moves: the same bits either way.
+  static constexpr bool kWhole = std::is_same_v<T, double> && kWidth == 4;
+  static constexpr bool kHalves = std::is_same_v<T, double> && (kWidth == 2 || kWidth == 8);
   static constexpr bool kQuarters = std::is_same_v<T, float> && (kWidth == 4 || kWidth == 8 || kWidth == 16);
   typedef T Half __attribute__((vector_size(16), aligned(sizeof(T))));
   PBDBENCH_INLINE V3<L> position(const T* P, const std::int32_t* idx) const {
     V3<L> out;
-    if constexpr (kHalves) {
+    if constexpr (kWhole) {
+      // Lane k's particle in one load, the four transposed.
+      typedef T Whole __attribute__((vector_size(32), aligned(sizeof(T))));
+      const auto at = [&](int l) PBDBENCH_INLINE_LAMBDA -> typename L::V { return *reinterpret_cast<const Whole*>(P + idx[lane(l)]); };
+      const auto r0 = at(0), r1 = at(1), r2 = at(2), r3 = at(3);
+      const auto t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6), t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);
+      const auto t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6), t3 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
+      out.x = L::of(__builtin_shufflevector(t0, t2, 0, 1, 4, 5));
+      out.y = L::of(__builtin_shufflevector(t1, t3, 0, 1, 4, 5));
+      out.z = L::of(__builtin_shufflevector(t0, t2, 2, 3, 6, 7));
+    } else if constexpr (kHalves) {
       // Half h (0: x, y; 1: z, 0) of the particles of lanes first, first + 2, ... in one pack.
       const auto halves = [&](int first, int h) PBDBENCH_INLINE_LAMBDA -> typename L::V {
         const auto at = [&](int k) PBDBENCH_INLINE_LAMBDA {
@@ -224,7 +235,21 @@ struct Lanes {
   }
   PBDBENCH_INLINE void store(T* P, const std::int32_t* idx, const V3<L>& v, int lanes) const {
     lanes &= active();
-    if constexpr (kHalves) {
+    if constexpr (kWhole) {
+      using V = typename L::V;
+      typedef T Whole __attribute__((vector_size(32), aligned(sizeof(T))));
+      const V zero{};
+      const V t0 = __builtin_shufflevector(v.x.v, v.z.v, 0, 1, 4, 5), t2 = __builtin_shufflevector(v.x.v, v.z.v, 2, 3, 6, 7);
+      const V t1 = __builtin_shufflevector(v.y.v, zero, 0, 1, 4, 5), t3 = __builtin_shufflevector(v.y.v, zero, 2, 3, 6, 7);
+      const V r[4] = {__builtin_shufflevector(t0, t1, 0, 4, 2, 6), __builtin_shufflevector(t0, t1, 1, 5, 3, 7),
+                      __builtin_shufflevector(t2, t3, 0, 4, 2, 6), __builtin_shufflevector(t2, t3, 1, 5, 3, 7)};
+      if (lanes == 15) {
+        for (int k = 0; k < 4; ++k) *reinterpret_cast<Whole*>(P + idx[k]) = r[k];
+      } else {
+        for (int k = 0; k < 4; ++k)
+          if ((lanes >> k) & 1) *reinterpret_cast<Whole*>(P + idx[k]) = r[k];
+      }
+    } else if constexpr (kHalves) {
       using V = typename L::V;
       const V zero{};
       const V xy[2] = {unpack_lo(v.x.v, v.y.v), unpack_hi(v.x.v, v.y.v)};  // even lanes, odd lanes
@@ -270,17 +295,16 @@ struct Lanes {
       }
     }
   }
-  // Lanes (a0, b0, a2, b2, ...) and (a1, b1, a3, b3, ...) of two packs (unpcklpd, unpckhpd).
+  // Lanes (a0, b0, a2, b2, ...) and (a1, b1, a3, b3, ...) of two packs of 2 or 8 lanes (unpcklpd,
+  // unpckhpd).
   template <class V>
   static PBDBENCH_INLINE V unpack_lo(const V& a, const V& b) {
     if constexpr (kWidth == 2) return __builtin_shufflevector(a, b, 0, 2);
-    else if constexpr (kWidth == 4) return __builtin_shufflevector(a, b, 0, 4, 2, 6);
     else return __builtin_shufflevector(a, b, 0, 8, 2, 10, 4, 12, 6, 14);
   }
   template <class V>
   static PBDBENCH_INLINE V unpack_hi(const V& a, const V& b) {
     if constexpr (kWidth == 2) return __builtin_shufflevector(a, b, 1, 3);
-    else if constexpr (kWidth == 4) return __builtin_shufflevector(a, b, 1, 5, 3, 7);
     else return __builtin_shufflevector(a, b, 1, 9, 3, 11, 5, 13, 7, 15);
   }
   // Within each block of four lanes of two packs a, b: (a0, b0, a1, b1), (a2, b2, a3, b3),
