@@ -191,8 +191,6 @@ struct Lanes {
         };
         if constexpr (kWidth == 2) {
           return at(first);
-        } else if constexpr (kWidth == 4) {
-          return __builtin_shufflevector(at(first), at(first + 2), 0, 1, 2, 3);
         } else {
           const auto lo = __builtin_shufflevector(at(first), at(first + 2), 0, 1, 2, 3);
           const auto hi = __builtin_shufflevector(at(first + 4), at(first + 6), 0, 1, 2, 3);
