@@ -3,11 +3,6 @@
 // in every order, both rules and both precisions; the same bits at any thread count and, kernel
 // by kernel (solvers/projection_kernels.hpp), in every register width; and the
 // sequential order's levels against the one-by-one order of the same kernels.
-// ProjectionKernels.LanesGatherAndStoreEachLanesParticle instantiates 32- and 64-byte packs in this
-// file, compiled for any x86-64: GCC notes that such vectors would be passed differently between
-// files built with and without AVX. They never leave this file.
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 #include <gtest/gtest.h>
 
 #include <bit>
