@@ -523,8 +523,9 @@ struct RunFileWriter::Impl {
 
   double elapsed() const { return std::chrono::duration<double>(Clock::now() - started).count(); }
 
-  // Writes the buffered rows, flushes the library and publishes the working copy at `path`.
-  void publish(bool durable) {
+  // Writes the buffered rows, flushes the library and publishes the working copy at `path`;
+  // PublishNext::Last when only closing the file follows (shadow_file.hpp).
+  void publish(bool durable, PublishNext next = PublishNext::Working) {
     if (broken) fail(path, "an earlier publish failed: the file stays as it was then");
     const Clock::time_point t0 = Clock::now();
     write_pending();
@@ -537,7 +538,7 @@ struct RunFileWriter::Impl {
     }
     file->flush(H5F_SCOPE_GLOBAL);
     try {
-      shadow_publish(file->getId(), path, durable);
+      shadow_publish(file->getId(), path, durable, next);
     } catch (...) {
       broken = true;
       throw;
@@ -552,7 +553,8 @@ struct RunFileWriter::Impl {
     if (since >= std::max(flush_every, kPublishShare * last_publish_cost)) publish(false);
   }
 
-  // Closes the library's file and removes the working copy; the lock goes last.
+  // Closes the library's file and removes the working copy (left only where the last publish
+  // did not happen or failed); the lock goes last.
   void close() {
     closed = true;
     compressor.reset();  // joins the worker
@@ -705,7 +707,7 @@ RunFileWriter::~RunFileWriter() {
     impl_->root.status_reason = "the writer was closed before the run finished";
     put_root(*impl_->file, impl_->root, "status_reason");
     impl_->dirty = true;
-    impl_->publish(false);
+    impl_->publish(false, PublishNext::Last);
   } catch (...) {
     // Nothing to report from a destructor: the file on disk keeps its last published image,
     // which says "incomplete".
@@ -824,7 +826,7 @@ void RunFileWriter::finish(RunStatus status, const std::string& reason, long ste
     root.exploded_time = exploded_time;
     for (const char* name : {"status", "status_reason", "wall_time", "exploded_step", "exploded_time"})
       put_root(*w.file, root, name);
-    w.publish(true);
+    w.publish(true, PublishNext::Last);
     w.close();
   } catch (const H5::Exception& e) {
     fail(w.path, "cannot finish: " + h5_message(e));

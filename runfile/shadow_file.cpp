@@ -17,6 +17,7 @@
 #include <cerrno>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <utility>
@@ -37,6 +38,7 @@ struct ShadowFile {
   ino_t inode = 0;
   std::vector<std::pair<haddr_t, haddr_t>> dirty;  // [begin, end) written since the last publish
   int last_errno = 0;
+  bool sealed = false;  // published for the last time: fd is the published file, never written
 };
 
 constexpr haddr_t kMaxAddr = (static_cast<haddr_t>(1) << 62) - 1;
@@ -149,6 +151,7 @@ herr_t shadow_read(H5FD_t* file, H5FD_mem_t, hid_t, haddr_t addr, size_t size, v
 herr_t shadow_write(H5FD_t* file, H5FD_mem_t, hid_t, haddr_t addr, size_t size, const void* buffer) {
   ShadowFile* f = cast(file);
   if (addr == HADDR_UNDEF || addr + size > f->eoa) return -1;
+  if (f->sealed) return 0;  // after the last publish: dropped (shadow_publish, PublishNext::Last)
   const haddr_t begin = addr;
   const auto* in = static_cast<const unsigned char*>(buffer);
   while (size > 0) {
@@ -174,7 +177,7 @@ herr_t shadow_write(H5FD_t* file, H5FD_mem_t, hid_t, haddr_t addr, size_t size, 
 
 herr_t shadow_truncate(H5FD_t* file, hid_t, hbool_t) {
   ShadowFile* f = cast(file);
-  if (f->eoa == f->eof) return 0;
+  if (f->sealed || f->eoa == f->eof) return 0;
   if (::ftruncate(f->fd, static_cast<off_t>(f->eoa)) != 0) {
     f->last_errno = errno;
     return -1;
@@ -222,19 +225,47 @@ void write_all(int fd, const unsigned char* data, size_t size, off_t at, const s
   }
 }
 
+// Copies byte ranges between two files at the same offsets: within the kernel
+// (copy_file_range: the bytes are not brought into this process and written back) while the
+// kernel and the filesystems allow it, else through a buffer of this process.
+struct RangeCopier {
+  bool in_kernel = true;
+  std::unique_ptr<unsigned char[]> buffer;  // allocated on first use, not zeroed
+  static constexpr size_t kBuffer = 1 << 20;
+};
+
 // Copies [begin, end) of `from` into `to` at the same offsets.
-std::uint64_t copy_range(int from, int to, haddr_t begin, haddr_t end, std::vector<unsigned char>& buffer,
+std::uint64_t copy_range(int from, int to, haddr_t begin, haddr_t end, RangeCopier& copier,
                          const std::filesystem::path& path) {
   std::uint64_t copied = 0;
+  while (begin < end && copier.in_kernel) {
+    loff_t in = static_cast<loff_t>(begin), out = static_cast<loff_t>(begin);
+    const ssize_t n = ::copy_file_range(from, &in, to, &out, static_cast<size_t>(end - begin), 0);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      // Not between these files (another filesystem, a kernel without it): the buffer instead.
+      if (errno == ENOSYS || errno == EXDEV || errno == EINVAL || errno == EOPNOTSUPP ||
+          errno == ENOTSUP || errno == EBADF || errno == EPERM) {
+        copier.in_kernel = false;
+        break;
+      }
+      fail(path, "cannot update the working copy", errno);
+    }
+    if (n == 0) return copied;  // past the end: nothing to copy
+    begin += static_cast<haddr_t>(n);
+    copied += static_cast<std::uint64_t>(n);
+  }
+  if (begin < end && !copier.buffer) copier.buffer = std::make_unique_for_overwrite<unsigned char[]>(RangeCopier::kBuffer);
+  unsigned char* buffer = copier.buffer.get();
   while (begin < end) {
-    const size_t want = static_cast<size_t>(std::min<haddr_t>(end - begin, buffer.size()));
-    const ssize_t n = ::pread(from, buffer.data(), want, static_cast<off_t>(begin));
+    const size_t want = static_cast<size_t>(std::min<haddr_t>(end - begin, RangeCopier::kBuffer));
+    const ssize_t n = ::pread(from, buffer, want, static_cast<off_t>(begin));
     if (n < 0) {
       if (errno == EINTR) continue;
       fail(path, "cannot read the published file back", errno);
     }
     if (n == 0) break;  // past the end: nothing to copy
-    write_all(to, buffer.data(), static_cast<size_t>(n), static_cast<off_t>(begin), path,
+    write_all(to, buffer, static_cast<size_t>(n), static_cast<off_t>(begin), path,
               "cannot update the working copy");
     begin += static_cast<haddr_t>(n);
     copied += static_cast<std::uint64_t>(n);
@@ -271,22 +302,25 @@ std::filesystem::path shadow_path(const std::filesystem::path& published) {
   return std::filesystem::path(published.string() + ".shadow");
 }
 
-PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, bool durable) {
+PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, bool durable,
+                            PublishNext next) {
   void* handle = nullptr;
   if (H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || !handle)
     throw std::runtime_error("run file " + published.string() + ": not open with the shadow driver");
   ShadowFile& f = *static_cast<ShadowFile*>(handle);
+  if (f.sealed) throw std::logic_error("run file " + published.string() + ": published after its last publish");
   const std::filesystem::path shadow = shadow_path(published);
   const std::filesystem::path previous(published.string() + ".previous");
   PublishStats stats;
 
   if (durable && ::fsync(f.fd) != 0) fail(published, "cannot sync " + shadow.string(), errno);
 
-  // 1. The published file keeps a second name, so that it can become the next working copy.
+  // 1. The published file keeps a second name, so that it can become the next working copy
+  // (not after the last publish: the rename below then removes it).
   bool linked = false;
   if (f.other >= 0) {
     ::unlink(previous.c_str());  // a leftover of a process killed between steps 1 and 3
-    linked = ::link(published.c_str(), previous.c_str()) == 0;
+    if (next == PublishNext::Working) linked = ::link(published.c_str(), previous.c_str()) == 0;
   }
   // 2. The working copy becomes the published file, atomically.
   if (::rename(shadow.c_str(), published.c_str()) != 0) {
@@ -295,6 +329,15 @@ PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, 
     fail(published, "cannot rename " + shadow.string() + " to it", err);
   }
   if (durable) sync_directory(published);
+  if (next == PublishNext::Last) {
+    // Sealed: the descriptor is the published file now, read from while the library closes it
+    // and never written (shadow_write, shadow_truncate).
+    if (f.other >= 0) ::close(f.other);
+    f.other = -1;
+    f.dirty.clear();
+    f.sealed = true;
+    return stats;
+  }
 
   // 3. The next working copy: the previous published file brought up to date, or a full copy.
   // Should this fail, the driver must not write into what is now the published file.
@@ -316,20 +359,20 @@ void next_working_copy(ShadowFile& f, const std::filesystem::path& published, bo
                        PublishStats& stats) {
   const std::filesystem::path shadow = shadow_path(published);
   const std::filesystem::path previous(published.string() + ".previous");
-  std::vector<unsigned char> buffer(1 << 20);
+  RangeCopier copier;
   int next = -1;
   if (linked && ::rename(previous.c_str(), shadow.c_str()) == 0) {
     next = f.other;
     merge_ranges(f.dirty);
     for (const auto& [begin, end] : f.dirty)
-      stats.bytes_copied += copy_range(f.fd, next, begin, std::min(end, f.eof), buffer, published);
+      stats.bytes_copied += copy_range(f.fd, next, begin, std::min(end, f.eof), copier, published);
   } else {
     if (f.other >= 0) ::close(f.other);
     f.other = -1;
     next = ::open(shadow.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (next < 0) fail(published, "cannot create " + shadow.string(), errno);
     try {
-      stats.bytes_copied = copy_range(f.fd, next, 0, f.eof, buffer, published);
+      stats.bytes_copied = copy_range(f.fd, next, 0, f.eof, copier, published);
     } catch (...) {
       ::close(next);
       throw;

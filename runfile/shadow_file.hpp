@@ -13,9 +13,12 @@
 // So at every moment <path> is a complete image (the previous or the new one), a publish
 // writes about twice the bytes the library wrote since the last one (never the whole file),
 // and nothing is kept in memory but the list of those ranges. The cost: two copies of the file
-// on disk while the run goes; finish removes the shadow. A filesystem without hard links falls
-// back to copying the whole file at each publish (then the free space a publish needs is the
-// file's size).
+// on disk while the run goes. The last publish (finish) prepares no next working copy: the
+// previous image is removed, and from then on the driver writes nothing (what the library
+// writes while it closes the file is dropped, as it went into a copy that was removed before).
+// A filesystem without hard links falls back to copying the whole file at each publish (then
+// the free space a publish needs is the file's size). The ranges are copied within the kernel
+// (copy_file_range) where it can, else read and written back.
 #pragma once
 
 #include <hdf5.h>
@@ -33,6 +36,9 @@ hid_t shadow_driver();
 // The working copy's path for a published path: "<path>.shadow".
 std::filesystem::path shadow_path(const std::filesystem::path& published);
 
+// What comes after a publish: more writes (the next working copy is prepared), or none.
+enum class PublishNext { Working, Last };
+
 struct PublishStats {
   std::uint64_t bytes_copied = 0;  // bytes written into the next working copy by this publish
   bool full_copy = false;          // the whole file was copied (first publish, or no hard links)
@@ -40,8 +46,11 @@ struct PublishStats {
 
 // Publishes the file `file` (opened with shadow_driver() at shadow_path(published)) at
 // `published`; H5Fflush it first. With `durable`, the image and the rename are synced to disk.
+// With PublishNext::Last the file is sealed: no working copy is left on disk, later writes and
+// truncations through the driver do nothing, and only closing the file is left to do.
 // Throws std::runtime_error naming the path on failure; the published file is then the
 // previous image.
-PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, bool durable);
+PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, bool durable,
+                            PublishNext next = PublishNext::Working);
 
 }  // namespace pbdbench

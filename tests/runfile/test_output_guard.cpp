@@ -10,6 +10,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <string>
 
 #include "runfile/run_file.hpp"
@@ -141,6 +142,17 @@ TEST(OutputGuard, AFileInTheWayOfTheLockIsNotOverwritten) {
   EXPECT_EQ(read_all(lock_path(path)), "my own file named run.h5.lock\n");
 }
 
+// /proc/self/io: wchar counts the bytes this process passed to write calls (copy_file_range's
+// included).
+unsigned long long bytes_written() {
+  std::ifstream io("/proc/self/io");
+  std::string key;
+  unsigned long long value = 0;
+  while (io >> key >> value)
+    if (key == "wchar:") return value;
+  return 0ull;
+}
+
 // A publish writes what changed since the previous one (twice: the library's writes into the
 // working copy, then the copy into the previous image), not the whole file.
 TEST(ShadowFile, APublishCopiesOnlyWhatChanged) {
@@ -152,15 +164,7 @@ TEST(ShadowFile, APublishCopiesOnlyWhatChanged) {
   w.flush();
   const auto big = fs::file_size(path);
   ASSERT_GT(big, 10u << 20);
-  // /proc/self/io: wchar counts the bytes this process passed to write calls.
-  auto written = [] {
-    std::ifstream io("/proc/self/io");
-    std::string key;
-    unsigned long long value = 0;
-    while (io >> key >> value)
-      if (key == "wchar:") return value;
-    return 0ull;
-  };
+  auto written = bytes_written;
   const auto before = written();
   append_rows(w, m, 50000, 10);
   w.flush();
@@ -172,6 +176,34 @@ TEST(ShadowFile, APublishCopiesOnlyWhatChanged) {
   w.finish(RunStatus::Complete, "", 50009, 1.0);
   EXPECT_FALSE(fs::exists(shadow_path(path)));
   EXPECT_EQ(read_run_file(path).series.at("time").size(), 50010u);
+}
+
+// The last publish (finish, or a writer destroyed unfinished) prepares no next working copy:
+// what the library wrote since the publish before is not copied again, and neither the working
+// copy nor the previous image is left on disk.
+TEST(ShadowFile, TheLastPublishCopiesNothingAndLeavesOneFile) {
+  const fs::path dir = temp_dir();
+  const Model m = test::fixture_model();
+  for (const bool finished : {true, false}) {
+    const fs::path path = dir / (finished ? "finished.h5" : "destroyed.h5");
+    auto w = std::make_unique<RunFileWriter>(path, header(), m, 1e9);
+    w->flush();  // a previous image exists: the case where a next working copy would be made
+    // Written into the working copy as they come (in batches of rows), never published.
+    append_rows(*w, m, 0, 50000);
+    const auto before = bytes_written();
+    if (finished)
+      w->finish(RunStatus::Complete, "", 49999, 1.0);
+    w.reset();
+    const auto cost = bytes_written() - before;
+    const auto size = fs::file_size(path);
+    ASSERT_GT(size, 10u << 20);
+    EXPECT_LT(cost, size / 10) << "the last publish of a " << size << "-byte file wrote " << cost << " bytes";
+    EXPECT_FALSE(fs::exists(shadow_path(path)));
+    EXPECT_FALSE(fs::exists(path.string() + ".previous"));
+    const RunFileData data = read_run_file(path);
+    EXPECT_EQ(data.series.at("time").size(), 50000u);
+    EXPECT_EQ(data.status(), finished ? "complete" : "incomplete");
+  }
 }
 
 }  // namespace
