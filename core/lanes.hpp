@@ -20,6 +20,8 @@
 // heuristics say, so that a kernel is one straight-line loop body (and so that the instruction-set
 // files of solvers/projection_wide.hpp emit no out-of-line copy of a shared function).
 #define PBDBENCH_INLINE inline __attribute__((always_inline))
+// The same on a lambda (after its parameter list).
+#define PBDBENCH_INLINE_LAMBDA __attribute__((always_inline))
 
 namespace pbdbench {
 

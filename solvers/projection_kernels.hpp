@@ -134,8 +134,6 @@ struct JacobiBuffers {
 // written for them. Lane k of an array value is a[k]; of a position, the particle that starts at
 // P + idx[k] (idx: a block's offsets, kStride x the particle's index).
 
-#define PBDBENCH_INLINE_LAMBDA __attribute__((always_inline))
-
 template <class T, class W, bool Partial>
 struct Lanes {
   static constexpr int kWidth = W::kWidth;

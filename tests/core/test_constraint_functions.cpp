@@ -8,6 +8,7 @@
 
 #include <numbers>
 
+#include "core/constraint_values_packed.hpp"
 #include "core/fem.hpp"
 #include "core/generators.hpp"
 #include "tests/core/test_support.hpp"
@@ -239,6 +240,29 @@ TEST(ConstraintFunctions, ConstraintValuesAreEvalConstraintBitForBit) {
   for (size_t j = 0; j < runs.constraints.size(); ++j) {
     EXPECT_EQ(values[j], eval_constraint(runs, runs.constraints[j], x).C) << "run constraint " << j;
     EXPECT_EQ(narrow[j], values[j]) << "run constraint " << j;
+  }
+  // Each width called directly, 32- and 64-byte packs too (the compiler lowers them where the
+  // processor lacks them, so the gathering of every width is checked on any processor): the
+  // same bits as eval_constraint, alone and in the runs of every length.
+  for (const Model* model : {&m, &runs}) {
+    const ConstraintRuns cr = constraint_runs(*model);
+    detail::RunsView view;
+    view.runs = cr.runs.data();
+    view.count = cr.runs.size();
+    for (size_t i = 0; i < 4; ++i) view.particle[i] = cr.particle[i].data();
+    view.rest = cr.rest.data();
+    view.constraints = model->constraints.data();
+    const size_t count = model->constraints.size();
+    std::vector<double> w2(count, -1.0), w4(count, -1.0), w8(count, -1.0);
+    detail::constraint_values_packed<Pack<double, 16>>(*model, x, x.data(), view, w2.data());
+    detail::constraint_values_packed<Pack<double, 32>>(*model, x, x.data(), view, w4.data());
+    detail::constraint_values_packed<Pack<double, 64>>(*model, x, x.data(), view, w8.data());
+    for (size_t j = 0; j < count; ++j) {
+      const double C = eval_constraint(*model, model->constraints[j], x).C;
+      EXPECT_EQ(w2[j], C) << "2 lanes, constraint " << j;
+      EXPECT_EQ(w4[j], C) << "4 lanes, constraint " << j;
+      EXPECT_EQ(w8[j], C) << "8 lanes, constraint " << j;
+    }
   }
 }
 
