@@ -45,7 +45,7 @@ def main(argv):
         mc = stat("Mproj_per_cpu_s")
         step = stat("step_ms")
         other = []
-        for key in ("overhead_pct", "run_s"):
+        for key in ("logging_pct", "logging_cpu_pct", "overhead_pct", "run_s"):
             s = stat(key)
             if s:
                 other.append("%s %.3g [%.3g, %.3g]" % (key, *s))
