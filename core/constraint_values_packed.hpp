@@ -27,16 +27,12 @@ struct RunsView {
   const Constraint* constraints = nullptr;  // the model's, for the FEM kinds
 };
 
-// C of every constraint of the runs at positions X (row-major n x 3, the data of x), into C (one
-// per model constraint). Raw pointers in and out, and no standard-library template instantiated
-// here: a wide translation unit must emit nothing that the linker could share with code for
-// other processors.
 // The rows of X (row-major n x 3) of the particles idx[0], ..., idx[kWidth - 1], transposed
 // into the lanes of x, y and z: each row's (x, y) in one 16-byte load and its z in a scalar
 // one, the even lanes' pairs side by side in one pack and the odd lanes' in another, then
 // interleaved (lane k's x is pair k's first value). Copying the coordinates one scalar at a time
-// into arrays and loading those made the gathering most of this file's time (docs/performance.md,
-// "Session 32"). Only data moves: the same values either way.
+// into arrays and loading those made the gathering about half of this file's time
+// (docs/performance.md, "Session 32"). Only data moves: the same values either way.
 template <class L, size_t... K>
 PBDBENCH_INLINE V3<L> gather_rows(const double* X, const std::int32_t* idx, std::index_sequence<K...>) {
   constexpr int W = L::kWidth;
