@@ -45,15 +45,55 @@ double max_distance_from_centroid(const Points& x) {
   return std::sqrt(d2);
 }
 
-// Every coordinate finite, over the rows' contiguous storage: Eigen's allFinite() of a row-major
-// n x 3 matrix went column by column through strided loads (a sixth of measure's own time on the
-// 64 x 64 cloth, docs/performance.md, session 29).
-bool all_finite(const Points& p) {
-  const double* d = p.data();
-  const size_t count = static_cast<size_t>(p.size());
+// measure's quantities of the particles, in one pass over x, v and the inverse masses (they were
+// five: the energy and momentum, the finiteness of x and of v, the largest speed, the lowest
+// particle; docs/performance.md, session 33). Each quantity takes its particles in index order
+// with the arithmetic it had in its own loop: the same bits.
+struct ParticleScan {
+  double kinetic = 0.0, potential = 0.0;
+  Vec3 linear = Vec3::Zero(), angular = Vec3::Zero();
+  bool finite = true;          // every coordinate of x and v
+  double speed2_max = 0.0;     // max_i |v_i|^2 over every particle (meaningful where finite)
+  double lowest = kNaN;        // min over dynamic particles of up . x_i (NaN: none)
+  bool dynamic_finite = true;  // every dynamic particle's position finite
+};
+
+ParticleScan scan_particles(const Model& model, const Points& x, const Points& v, const Vec3& up) {
+  ParticleScan out;
+  const int n = model.particle_count();
+  const double* w_of = model.inv_mass.data();
+  constexpr double kMax = std::numeric_limits<double>::max();
   unsigned bad = 0;
-  for (size_t k = 0; k < count; ++k) bad |= !(std::abs(d[k]) <= std::numeric_limits<double>::max());
-  return bad == 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 xi = x.row(i), vi = v.row(i);
+    unsigned bad_x = 0;
+    for (int k = 0; k < 3; ++k) {
+      bad_x |= !(std::abs(xi[k]) <= kMax);
+      bad |= !(std::abs(vi[k]) <= kMax);
+    }
+    bad |= bad_x;
+    out.speed2_max = std::max(out.speed2_max, vi.squaredNorm());
+    const double w = w_of[i];
+    if (w == 0.0) continue;
+    const double m = 1.0 / w;
+    out.kinetic += 0.5 * m * vi.squaredNorm();
+    out.potential -= m * model.gravity.dot(xi);
+    out.linear += m * vi;
+    out.angular += m * xi.cross(vi);
+    if (bad_x) {
+      out.dynamic_finite = false;
+      continue;
+    }
+    const double h = up.dot(xi);
+    if (std::isnan(out.lowest) || h < out.lowest) out.lowest = h;
+  }
+  out.finite = bad == 0;
+  if (!out.dynamic_finite) out.lowest = kNaN;
+  return out;
+}
+
+bool has_colliders(const Model& model) {
+  return !model.planes.empty() || !model.spheres.empty() || !model.meshes.empty();
 }
 
 }  // namespace
@@ -193,7 +233,6 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   Sample s;
   const Points& x = state.x;
   const Points& v = state.v;
-  const int n = model.particle_count();
 
   // Constraint error, overall and per group (constraint_error above: the FEM kinds by their
   // deviation from the rest shape).
@@ -260,28 +299,21 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     s.surface_volume_drift = kNaN;
   }
 
-  // Energy and momentum of the dynamic particles.
-  for (int i = 0; i < n; ++i) {
-    const double w = model.inv_mass[static_cast<size_t>(i)];
-    if (w == 0.0) continue;
-    const double m = 1.0 / w;
-    const Vec3 xi = x.row(i), vi = v.row(i);
-    s.kinetic_energy += 0.5 * m * vi.squaredNorm();
-    s.potential_energy -= m * model.gravity.dot(xi);
-    s.linear_momentum += m * vi;
-    s.angular_momentum += m * xi.cross(vi);
-  }
+  // Energy and momentum of the dynamic particles, and the particles' checks below, in one pass.
+  const ParticleScan scan = scan_particles(model, x, v, up_direction(model));
+  s.kinetic_energy = scan.kinetic;
+  s.potential_energy = scan.potential;
+  s.linear_momentum = scan.linear;
+  s.angular_momentum = scan.angular;
   s.elastic_energy = elastic;  // the compliant constraints', summed above
   for (const FemElement& e : model.elements) s.elastic_energy += fem::element_energy(e, x);
   if (!baseline.elastic_defined) s.elastic_energy = kNaN;
   s.total_energy = s.kinetic_energy + s.potential_energy + s.elastic_energy;
 
   // Explosion indicators.
-  s.finite = all_finite(x) && all_finite(v);
+  s.finite = scan.finite;
   if (s.finite) {
-    double vmax2 = 0.0;
-    for (int i = 0; i < n; ++i) vmax2 = std::max(vmax2, v.row(i).squaredNorm());
-    s.max_speed = std::sqrt(vmax2);
+    s.max_speed = std::sqrt(scan.speed2_max);
     s.extent = max_distance_from_centroid(x);
   } else {
     s.max_speed = kNaN;
@@ -302,8 +334,11 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   }
 
   // Failure detectors.
-  s.height_min = height_min(model, state);
-  const SunkParticles sunk = sunk_particles(model, state);
+  s.height_min = scan.lowest;
+  // Without colliders nothing is sunk; the depth is NaN where a dynamic position is not finite.
+  const SunkParticles sunk = has_colliders(model)
+                                 ? sunk_particles(model, state)
+                                 : SunkParticles{0, scan.dynamic_finite ? 0.0 : kNaN};
   s.sunk_count = sunk.count;
   s.sunk_depth = sunk.depth;
 
@@ -317,16 +352,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
 }
 
 double height_min(const Model& model, const State& state) {
-  const Vec3 up = up_direction(model);
-  double lowest = kNaN;
-  for (int i = 0; i < model.particle_count(); ++i) {
-    if (model.inv_mass[static_cast<size_t>(i)] == 0.0) continue;
-    const Vec3 x = state.x.row(i);
-    if (!x.allFinite()) return kNaN;
-    const double h = up.dot(x);
-    if (std::isnan(lowest) || h < lowest) lowest = h;
-  }
-  return lowest;
+  return scan_particles(model, state.x, state.v, up_direction(model)).lowest;
 }
 
 SunkParticles sunk_particles(const Model& model, const State& state) {

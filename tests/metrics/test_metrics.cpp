@@ -364,6 +364,46 @@ TEST(metrics, SunkDepthBelowAPlaneIsTheCentresDepth) {
   EXPECT_TRUE(std::isnan(sunk_particles(m, s).depth));
 }
 
+// measure takes its particle quantities in one pass (and, without colliders, no pass for the
+// sunk particles): they agree with the detectors' own functions, and with what a non-finite
+// coordinate must do to each, wherever it is (a dynamic or a pinned particle, x or v).
+TEST(metrics, MeasuresParticleQuantitiesAgreeWithTheDetectors) {
+  const Model m = particles({{0, 0.5, 9}, {1, -0.25, -9}, {2, -7, 0}, {3, 0.1, -1}}, {1, 2, 0, -1});
+  struct Case {
+    int particle;
+    bool velocity;
+    bool finite_height;  // height_min stays a number
+  };
+  for (const Case c : {Case{-1, false, true}, Case{2, false, true}, Case{2, true, true}, Case{1, true, true},
+                       Case{1, false, false}, Case{3, false, false}}) {
+    State s = rest_state(m);
+    s.v = Points::Constant(4, 3, 0.5);
+    if (c.particle >= 0) (c.velocity ? s.v : s.x)(c.particle, 1) = kNaN;
+    const Sample out = measure(m, s, measure_baseline(m, rest_state(m)));
+    const SunkParticles sunk = sunk_particles(m, s);
+    SCOPED_TRACE(::testing::Message() << "NaN in particle " << c.particle << (c.velocity ? " v" : " x"));
+    EXPECT_EQ(out.finite, c.particle < 0);
+    EXPECT_EQ(std::isnan(out.height_min), !c.finite_height);
+    if (c.finite_height) {
+      EXPECT_EQ(out.height_min, height_min(m, s));
+    }
+    EXPECT_TRUE(std::isnan(height_min(m, s)) == std::isnan(out.height_min));
+    EXPECT_EQ(out.sunk_count, sunk.count);
+    EXPECT_EQ(std::isnan(out.sunk_depth), std::isnan(sunk.depth));
+    if (!std::isnan(sunk.depth)) {
+      EXPECT_EQ(out.sunk_depth, sunk.depth);
+    }
+    EXPECT_EQ(std::isnan(out.sunk_depth), !c.finite_height);
+    if (c.particle < 0) {
+      // Dynamic particles 0, 1 and 3 (masses 1, 1/2, -1), |v|^2 = 0.75 each.
+      EXPECT_EQ(out.kinetic_energy, 0.5 * 1.0 * 0.75 + 0.5 * 0.5 * 0.75 + 0.5 * -1.0 * 0.75);
+      EXPECT_EQ(out.max_speed, std::sqrt(0.75));
+    } else {
+      EXPECT_TRUE(std::isnan(out.max_speed));
+    }
+  }
+}
+
 TEST(metrics, SunkIntoSpheresOutsideInsideAndBowl) {
   // Spheres of radius 1 about the origin. Particles at distance 0.75 below the centre, 1.5
   // below it, and 1.25 above it.
