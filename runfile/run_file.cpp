@@ -468,6 +468,7 @@ struct RunFileWriter::Impl {
   Clock::time_point last_publish = Clock::now();
   double last_publish_cost = 0.0;  // s
   std::optional<OutputLock> lock;  // one writer per path, for the writer's life
+  DiskWorker disk;                 // writebacks started, replaced files closed (disk_worker.hpp)
   RunRoot root;                    // the root attributes as last written (kRoot)
   bool broken = false;             // a publish failed half-way: the working copy is gone
 
@@ -538,7 +539,7 @@ struct RunFileWriter::Impl {
     }
     file->flush(H5F_SCOPE_GLOBAL);
     try {
-      shadow_publish(file->getId(), path, durable, next);
+      shadow_publish(file->getId(), path, durable, next, &disk);
     } catch (...) {
       broken = true;
       throw;

@@ -3,7 +3,7 @@
 // The driver is HDF5's POSIX driver reduced to what the run file writer needs (pread, pwrite,
 // ftruncate on one descriptor), plus the list of byte ranges written since the last publish.
 // HDF5 never learns that the descriptor it writes through changes at each publish: after the
-// rename the driver's descriptor is swapped for the previous published file's, which by then
+// exchange (or rename) the driver's descriptor is swapped for the previous published file's, which by then
 // holds the same bytes.
 #include "runfile/shadow_file.hpp"
 
@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>  // renameat2
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -282,8 +283,8 @@ void sync_directory(const std::filesystem::path& path) {
   }
 }
 
-void next_working_copy(ShadowFile& f, const std::filesystem::path& published, bool linked,
-                       PublishStats& stats);
+void next_working_copy(ShadowFile& f, const std::filesystem::path& published, bool exchanged,
+                       bool linked, PublishStats& stats);
 
 }  // namespace
 
@@ -303,7 +304,7 @@ std::filesystem::path shadow_path(const std::filesystem::path& published) {
 }
 
 PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, bool durable,
-                            PublishNext next) {
+                            PublishNext next, DiskWorker* disk) {
   void* handle = nullptr;
   if (H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || !handle)
     throw std::runtime_error("run file " + published.string() + ": not open with the shadow driver");
@@ -313,21 +314,47 @@ PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, 
   const std::filesystem::path previous(published.string() + ".previous");
   PublishStats stats;
 
+  // The images published before need not reach the disk now: only this one does, if durable.
+  if (next == PublishNext::Last && disk != nullptr) disk->drop_writebacks();
   if (durable && ::fsync(f.fd) != 0) fail(published, "cannot sync " + shadow.string(), errno);
 
-  // 1. The published file keeps a second name, so that it can become the next working copy
-  // (not after the last publish: the rename below then removes it).
-  bool linked = false;
-  if (f.other >= 0) {
-    ::unlink(previous.c_str());  // a leftover of a process killed between steps 1 and 3
-    if (next == PublishNext::Working) linked = ::link(published.c_str(), previous.c_str()) == 0;
+  // 1. The working copy becomes the published file, atomically. Where the previous image is
+  // still ours (f.other) and more is to be written, the two names are exchanged in one step
+  // (renameat2 RENAME_EXCHANGE): <path> names the new image and the working copy's name the
+  // previous one, to be brought up to date below. Exchanging rather than renaming over <path>
+  // also keeps ext4 from writing the new image's pages back inside the call (its
+  // replace-by-rename rule, auto_da_alloc: about 50 us a MB of unwritten data on the
+  // development machine, in the run's thread), which is for power cuts, which a publish that is
+  // not durable does not survive anyway (results/README.md, "Crash safety").
+  // At the first publish over a file that was there before (a finished run's, which the writer
+  // may replace: output_guard.hpp), the names are exchanged too and that file's new name removed.
+  // Else, or where the exchange fails (a filesystem without it, <path> gone): the published file
+  // gets a second name, then the working copy is renamed over it.
+  const bool ours = f.other >= 0;
+  bool exchanged = false, linked = false;
+  if (next == PublishNext::Working) {
+    struct stat st {};
+    if (ours || (::lstat(published.c_str(), &st) == 0 && S_ISREG(st.st_mode)))
+      exchanged = ::renameat2(AT_FDCWD, shadow.c_str(), AT_FDCWD, published.c_str(), RENAME_EXCHANGE) == 0;
+    if (exchanged && !ours) {
+      // Its pages and blocks are freed in the close of its last descriptor, off this thread.
+      const int replaced = disk != nullptr ? ::open(shadow.c_str(), O_RDONLY | O_CLOEXEC) : -1;
+      ::unlink(shadow.c_str());
+      if (disk != nullptr) disk->release(replaced);
+    }
   }
-  // 2. The working copy becomes the published file, atomically.
-  if (::rename(shadow.c_str(), published.c_str()) != 0) {
-    const int err = errno;
-    if (linked) ::unlink(previous.c_str());
-    fail(published, "cannot rename " + shadow.string() + " to it", err);
+  if (!exchanged) {
+    if (f.other >= 0) {
+      ::unlink(previous.c_str());  // a leftover of a process killed between the renames
+      if (next == PublishNext::Working) linked = ::link(published.c_str(), previous.c_str()) == 0;
+    }
+    if (::rename(shadow.c_str(), published.c_str()) != 0) {
+      const int err = errno;
+      if (linked) ::unlink(previous.c_str());
+      fail(published, "cannot rename " + shadow.string() + " to it", err);
+    }
   }
+  stats.exchanged = exchanged;
   if (durable) sync_directory(published);
   if (next == PublishNext::Last) {
     // Sealed: the descriptor is the published file now, read from while the library closes it
@@ -339,10 +366,10 @@ PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, 
     return stats;
   }
 
-  // 3. The next working copy: the previous published file brought up to date, or a full copy.
+  // 2. The next working copy: the previous published file brought up to date, or a full copy.
   // Should this fail, the driver must not write into what is now the published file.
   try {
-    next_working_copy(f, published, linked, stats);
+    next_working_copy(f, published, exchanged && ours, linked, stats);
   } catch (...) {
     ::close(f.fd);
     f.fd = -1;
@@ -350,18 +377,23 @@ PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, 
     f.other = -1;
     throw;
   }
+  // 3. The new image is not written again before the publish after next: its pages may go to
+  // disk now, off this thread.
+  if (disk != nullptr) disk->start_writeback(f.other);
   return stats;
 }
 
 namespace {
 
-void next_working_copy(ShadowFile& f, const std::filesystem::path& published, bool linked,
-                       PublishStats& stats) {
+// `exchanged`: the previous image (f.other) is at the working copy's name already; `linked`: it
+// is at "<path>.previous".
+void next_working_copy(ShadowFile& f, const std::filesystem::path& published, bool exchanged,
+                       bool linked, PublishStats& stats) {
   const std::filesystem::path shadow = shadow_path(published);
   const std::filesystem::path previous(published.string() + ".previous");
   RangeCopier copier;
   int next = -1;
-  if (linked && ::rename(previous.c_str(), shadow.c_str()) == 0) {
+  if (exchanged || (linked && ::rename(previous.c_str(), shadow.c_str()) == 0)) {
     next = f.other;
     merge_ranges(f.dirty);
     for (const auto& [begin, end] : f.dirty)

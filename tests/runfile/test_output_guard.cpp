@@ -3,14 +3,18 @@
 // holder), and a publish that writes what changed, not the whole file.
 #include "runfile/output_guard.hpp"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/inotify.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
+#include <cstdio>
 #include <memory>
+#include <set>
 #include <string>
 
 #include "runfile/run_file.hpp"
@@ -176,6 +180,66 @@ TEST(ShadowFile, APublishCopiesOnlyWhatChanged) {
   w.finish(RunStatus::Complete, "", 50009, 1.0);
   EXPECT_FALSE(fs::exists(shadow_path(path)));
   EXPECT_EQ(read_run_file(path).series.at("time").size(), 50010u);
+}
+
+// The names a directory's entries were created or moved under, as inotify reported them since
+// `fd` was set to watch it (read without waiting).
+std::set<std::string> names_created(int fd) {
+  std::set<std::string> out;
+  alignas(inotify_event) char buffer[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n <= 0) break;
+    for (ssize_t at = 0; at < n;) {
+      const auto* e = reinterpret_cast<const inotify_event*>(buffer + at);
+      if (e->len > 0 && (e->mask & (IN_CREATE | IN_MOVED_TO))) out.insert(e->name);
+      at += static_cast<ssize_t>(sizeof(inotify_event) + e->len);
+    }
+  }
+  return out;
+}
+
+// Whether this directory's filesystem exchanges two names in one step (renameat2).
+bool exchanges_names(const fs::path& dir) {
+  std::ofstream(dir / "probe_a") << "a";
+  std::ofstream(dir / "probe_b") << "b";
+  const bool ok = ::renameat2(AT_FDCWD, (dir / "probe_a").c_str(), AT_FDCWD, (dir / "probe_b").c_str(),
+                              RENAME_EXCHANGE) == 0;
+  fs::remove(dir / "probe_a");
+  fs::remove(dir / "probe_b");
+  return ok;
+}
+
+// A publish after the first exchanges the names of the working copy and the published file in
+// one step: no third name ("<path>.previous") is made, the previous image is the next working
+// copy, and it is up to date.
+TEST(ShadowFile, APublishExchangesTheTwoNames) {
+  const fs::path dir = temp_dir();
+  if (!exchanges_names(dir)) GTEST_SKIP() << dir << ": the filesystem cannot exchange two names";
+  const fs::path path = dir / "run.h5";
+  const Model m = test::fixture_model();
+  RunFileWriter w(path, header(), m, 1e9);
+  append_rows(w, m, 0, 1000);
+  w.flush();
+  struct stat published {}, working {};
+  ASSERT_EQ(::stat(path.c_str(), &published), 0);
+  ASSERT_EQ(::stat(shadow_path(path).c_str(), &working), 0);
+  const int fd = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  ASSERT_GE(::inotify_add_watch(fd, dir.c_str(), IN_CREATE | IN_MOVED_TO), 0);
+  append_rows(w, m, 1000, 10);
+  w.flush();
+  const std::set<std::string> names = names_created(fd);
+  ::close(fd);
+  EXPECT_EQ(names, (std::set<std::string>{"run.h5", "run.h5.shadow"}));
+  struct stat now_published {}, now_working {};
+  ASSERT_EQ(::stat(path.c_str(), &now_published), 0);
+  ASSERT_EQ(::stat(shadow_path(path).c_str(), &now_working), 0);
+  EXPECT_EQ(now_published.st_ino, working.st_ino);  // the working copy is published
+  EXPECT_EQ(now_working.st_ino, published.st_ino);  // the previous image works on
+  EXPECT_EQ(read_all(shadow_path(path)), read_all(path));
+  w.finish(RunStatus::Complete, "", 1009, 1.0);
+  EXPECT_EQ(read_run_file(path).series.at("time").size(), 1010u);
 }
 
 // The last publish (finish, or a writer destroyed unfinished) prepares no next working copy:
