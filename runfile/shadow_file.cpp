@@ -378,8 +378,12 @@ PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, 
     throw;
   }
   // 3. The new image is not written again before the publish after next: its pages may go to
-  // disk now, off this thread.
-  if (disk != nullptr) disk->start_writeback(f.other);
+  // disk now, off this thread; and so may the ranges just copied into the next working copy
+  // (the final publish's fsync then writes only what the library wrote after this publish).
+  if (disk != nullptr) {
+    disk->start_writeback(f.other);
+    disk->start_writeback(f.fd);
+  }
   return stats;
 }
 
