@@ -473,42 +473,35 @@ double pendulum_angle(const Model& model, const State& state) {
 
 std::string explosion_reason(const Model& model, const State& state, const Sample& sample,
                              const ExplosionLimits& limits, const MetricsBaseline& baseline) {
-  std::ostringstream why;
+  // The message, formatted only when there is one (a stream built at every step was about a
+  // tenth of the step logger's own time outside measure on the 64 x 64 cloth).
+  const auto say = [](const auto&... parts) {
+    std::ostringstream why;
+    (why << ... << parts);
+    return why.str();
+  };
   const int n = model.particle_count();
   if (!sample.finite) {
     for (int i = 0; i < n; ++i) {
-      if (!state.x.row(i).allFinite()) {
-        why << "non-finite position of particle " << i;
-        return why.str();
-      }
-      if (!state.v.row(i).allFinite()) {
-        why << "non-finite velocity of particle " << i;
-        return why.str();
-      }
+      if (!state.x.row(i).allFinite()) return say("non-finite position of particle ", i);
+      if (!state.v.row(i).allFinite()) return say("non-finite velocity of particle ", i);
     }
     return "non-finite state";
   }
-  if (sample.max_speed > limits.max_speed) {
-    why << "max speed " << sample.max_speed << " m/s exceeds limits.max_speed = " << limits.max_speed;
-    return why.str();
-  }
+  if (sample.max_speed > limits.max_speed)
+    return say("max speed ", sample.max_speed, " m/s exceeds limits.max_speed = ", limits.max_speed);
   const double ref = std::max(baseline.extent, 1e-3);
-  if (sample.extent > limits.max_extent_ratio * ref) {
-    why << "extent " << sample.extent << " m exceeds limits.max_extent_ratio = "
-        << limits.max_extent_ratio << " times the initial " << ref << " m";
-    return why.str();
-  }
+  if (sample.extent > limits.max_extent_ratio * ref)
+    return say("extent ", sample.extent, " m exceeds limits.max_extent_ratio = ", limits.max_extent_ratio,
+               " times the initial ", ref, " m");
   // The root only where the square comes near the limit (a particle within 0.999 of it squared
   // is not beyond it): the same particles as the distance of every one, for n roots fewer.
   const double near_sq = 0.999 * limits.max_distance * limits.max_distance;
   for (int i = 0; i < n; ++i) {
     if (!(state.x.row(i).squaredNorm() > near_sq)) continue;
     const double d = state.x.row(i).norm();
-    if (d > limits.max_distance) {
-      why << "particle " << i << " is " << d << " m from the origin, beyond limits.max_distance = "
-          << limits.max_distance;
-      return why.str();
-    }
+    if (d > limits.max_distance)
+      return say("particle ", i, " is ", d, " m from the origin, beyond limits.max_distance = ", limits.max_distance);
   }
   return {};
 }
