@@ -72,26 +72,34 @@ FrameCompressor::~FrameCompressor() {
   worker_.join();
 }
 
-long long FrameCompressor::submit(const void* data, size_t size) {
-  // The copy goes into a buffer the worker has finished with, when there is one: a fresh
+long long FrameCompressor::submit(const void* data, size_t size) { return submit({data}, size); }
+
+long long FrameCompressor::submit(std::initializer_list<const void*> parts, size_t size) {
+  // The copies go into buffers the worker has finished with, where there are some: a fresh
   // allocation of a frame's size is a fresh mapping whose pages fault in on every frame.
-  std::vector<unsigned char> copy;
+  std::vector<std::vector<unsigned char>> copies(parts.size());
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!spare_.empty()) {
+    for (auto& copy : copies) {
+      if (spare_.empty()) break;
       copy = std::move(spare_.back());
       spare_.pop_back();
     }
   }
-  copy.assign(static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
-  long long index;
+  size_t k = 0;
+  for (const void* data : parts)
+    copies[k++].assign(static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
+  long long first;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    index = submitted_++;
-    todo_.emplace_back(index, std::move(copy));
+    first = submitted_;
+    for (auto& copy : copies) todo_.emplace_back(submitted_++, std::move(copy));
   }
+  // One wake for the parts together: waking the worker costs the submitting thread a system
+  // call (about 14 us each on the development machine's guest, a frame's positions and
+  // velocities woken apart).
   wake_worker_.notify_one();
-  return index;
+  return first;
 }
 
 std::vector<CompressedChunk> FrameCompressor::take(bool wait) {

@@ -13,6 +13,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <initializer_list>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -55,6 +56,9 @@ class FrameCompressor {
 
   // Queues a copy of `size` bytes; returns its index (0, 1, 2, ... in call order).
   long long submit(const void* data, size_t size);
+  // Queues copies of `size` bytes at each of `parts` as consecutive chunks (a frame's positions
+  // and velocities) and wakes the worker once for them all; returns the first one's index.
+  long long submit(std::initializer_list<const void*> parts, size_t size);
   // The finished chunks, in submission order, up to the first one not finished yet; with
   // `wait`, every submitted chunk (blocks until the worker is done with all of them).
   std::vector<CompressedChunk> take(bool wait);

@@ -769,12 +769,11 @@ void RunFileWriter::append_frame(double time, const Points& x, const Points* v) 
       static_assert(Points::IsRowMajor, "a frame chunk is the points' memory as it is");
       static_assert(std::endian::native == std::endian::little, "the frames' file type is IEEE_F64LE");
       const size_t bytes = static_cast<size_t>(w.particles) * 3 * sizeof(double);
-      w.compressor->submit(x.data(), bytes);
       if (v != nullptr && v->rows() == x.rows()) {
-        w.compressor->submit(v->data(), bytes);
+        w.compressor->submit({x.data(), v->data()}, bytes);
       } else {
         const Points nan = Points::Constant(x.rows(), 3, std::numeric_limits<double>::quiet_NaN());
-        w.compressor->submit(nan.data(), bytes);
+        w.compressor->submit({x.data(), nan.data()}, bytes);
       }
       w.frame_times_queued.push_back(time);
       // Stored in batches of up to kMaxFramesQueued frames (HDF5's per-call costs once per
