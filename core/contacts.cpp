@@ -120,8 +120,9 @@ std::vector<Contact> find_contacts(const Model& model, const Points& x, double t
                                    SurfaceContactCache* surface_cache) {
   std::vector<Contact> out;
   const int n = model.particle_count();
-  // Particle-major loops, so that each kind comes out sorted by (a, b) as documented.
-  for (int a = 0; a < n; ++a) {
+  // Particle-major loops, so that each kind comes out sorted by (a, b) as documented; a kind
+  // the scene does not have costs no pass over the particles.
+  for (int a = 0; a < n && !model.planes.empty(); ++a) {
     if (model.inv_mass[a] == 0.0) continue;
     for (int pi = 0; pi < static_cast<int>(model.planes.size()); ++pi) {
       const PlaneCollider& plane = model.planes[static_cast<size_t>(pi)];
@@ -132,7 +133,7 @@ std::vector<Contact> find_contacts(const Model& model, const Points& x, double t
   const Vec3 up = up_direction(model);
   std::vector<Vec3> centers;
   for (const SphereCollider& s : model.spheres) centers.push_back(sphere_center(model, s, t));
-  for (int a = 0; a < n; ++a) {
+  for (int a = 0; a < n && !model.spheres.empty(); ++a) {
     if (model.inv_mass[a] == 0.0) continue;
     for (int si = 0; si < static_cast<int>(model.spheres.size()); ++si) {
       const SphereCollider& s = model.spheres[static_cast<size_t>(si)];
