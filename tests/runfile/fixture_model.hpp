@@ -8,6 +8,7 @@
 
 #include "core/model.hpp"
 #include "metrics/metrics.hpp"
+#include "runfile/run_file.hpp"
 #include "solver_api/solver.hpp"
 
 namespace pbdbench::test {
@@ -115,6 +116,18 @@ inline std::string fixture_config(const std::string& solver, int iterations, int
   return "[scenario]\nname = \"fixture\"\n\n[solver]\nname = \"" + solver +
          "\"\niterations = " + std::to_string(iterations) + "\nsubsteps = " +
          std::to_string(substeps) + "\n\n[run]\ndt = 0.01\nsteps = 100\n";
+}
+
+// The header of a run of the fixture (xpbd, 10 iterations, 2 substeps, dt 0.01 s, 100 steps).
+inline RunHeader fixture_header(const std::string& scenario_file = "scenarios/fixture.toml") {
+  RunHeader h;
+  h.scenario = "fixture";
+  h.scenario_file = scenario_file;
+  h.solver = "xpbd";
+  h.config = fixture_config("xpbd", 10, 2);
+  h.dt = 0.01;
+  h.steps_planned = 100;
+  return h;
 }
 
 }  // namespace pbdbench::test

@@ -96,13 +96,7 @@ TEST(DiskWorker, DroppedAndSurplusWritebacksLeaveNoDescriptor) {
 TEST(DiskWorker, ARunFileWriterLeavesNoDescriptorOpen) {
   const fs::path path = test::temp_dir() / "run.h5";
   const Model m = test::fixture_model();
-  RunHeader h;
-  h.scenario = "fixture";
-  h.scenario_file = "scenarios/fixture.toml";
-  h.solver = "xpbd";
-  h.config = test::fixture_config("xpbd", 10, 2);
-  h.dt = 0.01;
-  h.steps_planned = 100;
+  const RunHeader h = test::fixture_header();
   for (int run = 0; run < 2; ++run) {  // the second replaces the first's file
     const long before = open_descriptors();
     {

@@ -30,14 +30,7 @@ namespace fs = std::filesystem;
 using test::temp_dir;
 
 RunHeader header(const fs::path& scenario = "scenarios/fixture.toml") {
-  RunHeader h;
-  h.scenario = "fixture";
-  h.scenario_file = scenario.string();
-  h.solver = "xpbd";
-  h.config = test::fixture_config("xpbd", 10, 2);
-  h.dt = 0.01;
-  h.steps_planned = 100;
-  return h;
+  return test::fixture_header(scenario.string());
 }
 
 void append_rows(RunFileWriter& w, const Model& m, long first, long rows) {

@@ -31,16 +31,7 @@ namespace fs = std::filesystem;
 
 using test::temp_dir;
 
-RunHeader fixture_header() {
-  RunHeader h;
-  h.scenario = "fixture";
-  h.scenario_file = "scenarios/fixture.toml";
-  h.solver = "xpbd";
-  h.config = test::fixture_config("xpbd", 10, 2);
-  h.dt = 0.01;
-  h.steps_planned = 100;
-  return h;
-}
+using test::fixture_header;
 
 // Appends rows 0..rows-1 made by the fixture functions.
 void append_rows(RunFileWriter& w, const Model& m, long first, long rows) {
