@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <system_error>
 
 namespace pbdbench {
 
@@ -21,7 +22,7 @@ DiskWorker::~DiskWorker() {
   }
   wake_.notify_all();
   if (thread_.joinable()) thread_.join();
-  for (const auto& job : todo_) ::close(job.second);  // when the thread never started
+  for (const auto& job : todo_) ::close(job.second);  // none: the thread drained them
 }
 
 void DiskWorker::start_writeback(int fd) {
@@ -38,7 +39,11 @@ void DiskWorker::start_writeback(int fd) {
       todo_.erase(oldest);
     }
     todo_.emplace_back(Job::Writeback, copy);
-    if (!thread_.joinable()) thread_ = std::thread([this] { work(); });
+    if (!started_locked()) {  // no thread: the writeback is left to the kernel
+      ::close(copy);
+      todo_.pop_back();
+      return;
+    }
   }
   wake_.notify_one();
 }
@@ -60,9 +65,25 @@ void DiskWorker::release(int fd) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     todo_.emplace_back(Job::Close, fd);
-    if (!thread_.joinable()) thread_ = std::thread([this] { work(); });
+    if (!started_locked()) {  // no thread: closed here
+      todo_.pop_back();
+      ::close(fd);
+      return;
+    }
   }
   wake_.notify_one();
+}
+
+// Starts the thread if it is not running; false if it cannot be started (the caller then does
+// without it: none of this work may fail a run).
+bool DiskWorker::started_locked() {
+  if (thread_.joinable()) return true;
+  try {
+    thread_ = std::thread([this] { work(); });
+  } catch (const std::system_error&) {
+    return false;
+  }
+  return true;
 }
 
 long DiskWorker::done() const {

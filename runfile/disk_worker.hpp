@@ -31,18 +31,19 @@ class DiskWorker {
 
   // Queues the start of the writeback of the file open as `fd` (a duplicate of the descriptor is
   // kept until it is done; the caller keeps its own). The thread starts on first use. Failures
-  // are ignored: the pages then reach the disk when the kernel or a later fsync writes them, as
-  // without this.
+  // (no descriptor to spare, no thread) are ignored: the pages then reach the disk when the
+  // kernel or a later fsync writes them, as without this.
   void start_writeback(int fd);
   // Drops the writebacks not yet started (their files need not reach the disk).
   void drop_writebacks();
-  // Takes `fd` over and closes it.
+  // Takes `fd` over and closes it (here, if no thread can be started).
   void release(int fd);
   // Jobs done so far (for tests).
   long done() const;
 
  private:
   enum class Job { Writeback, Close };
+  bool started_locked();  // with mutex_ held
   void work();
 
   mutable std::mutex mutex_;
