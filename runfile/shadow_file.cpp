@@ -322,10 +322,10 @@ PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, 
   // still ours (f.other) and more is to be written, the two names are exchanged in one step
   // (renameat2 RENAME_EXCHANGE): <path> names the new image and the working copy's name the
   // previous one, to be brought up to date below. Exchanging rather than renaming over <path>
-  // also keeps ext4 from writing the new image's pages back inside the call (its
-  // replace-by-rename rule, auto_da_alloc: about 50 us a MB of unwritten data on the
-  // development machine, in the run's thread), which is for power cuts, which a publish that is
-  // not durable does not survive anyway (results/README.md, "Crash safety").
+  // also keeps ext4 from starting the new image's writeback inside the call, on the run's
+  // thread (its replace-by-rename rule, auto_da_alloc, which is for power cuts, which a publish
+  // that is not durable does not survive anyway: results/README.md, "Crash safety"); step 3
+  // starts it off this thread instead (docs/performance.md, "Session 33").
   // At the first publish over a file that was there before (a finished run's, which the writer
   // may replace: output_guard.hpp), the names are exchanged too and that file's new name removed.
   // Else, or where the exchange fails (a filesystem without it, <path> gone): the published file
