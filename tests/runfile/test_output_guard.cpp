@@ -235,6 +235,27 @@ TEST(ShadowFile, APublishExchangesTheTwoNames) {
   EXPECT_EQ(read_run_file(path).series.at("time").size(), 1010u);
 }
 
+// Where the names cannot be exchanged (here: the published file was removed under the writer),
+// a publish falls back to renaming the working copy over the path and copying it whole.
+TEST(ShadowFile, APublishWithoutAFileToExchangeWithRenames) {
+  const fs::path path = temp_dir() / "run.h5";
+  const Model m = test::fixture_model();
+  RunFileWriter w(path, header(), m, 1e9);
+  append_rows(w, m, 0, 100);
+  w.flush();
+  fs::remove(path);
+  append_rows(w, m, 100, 10);
+  w.flush();  // nothing to exchange with: renamed, and the next working copy made whole
+  EXPECT_EQ(read_run_file(path).series.at("time").size(), 110u);
+  EXPECT_EQ(read_all(shadow_path(path)), read_all(path));
+  append_rows(w, m, 110, 10);
+  w.flush();  // exchanged again
+  w.finish(RunStatus::Complete, "", 119, 1.0);
+  EXPECT_EQ(read_run_file(path).series.at("time").size(), 120u);
+  EXPECT_FALSE(fs::exists(shadow_path(path)));
+  EXPECT_FALSE(fs::exists(path.string() + ".previous"));
+}
+
 // The last publish (finish, or a writer destroyed unfinished) prepares no next working copy:
 // what the library wrote since the publish before is not copied again, and neither the working
 // copy nor the previous image is left on disk.
