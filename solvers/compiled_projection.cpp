@@ -107,7 +107,11 @@ class Program final : public CompiledProjection {
     }
     build_blocks(model, group_of);
     for (int k = 0; k < kKinds; ++k) views_[static_cast<size_t>(k)] = view(blocks_[static_cast<size_t>(k)]);
+    // The fourth scalar of a particle is its inverse mass (projection_kernels.hpp, kStride),
+    // read by the kernels with its coordinates; load() writes only the coordinates.
     P_.assign(static_cast<size_t>(kStride) * static_cast<size_t>(particles_), T(0));
+    for (int p = 0; p < particles_; ++p)
+      P_[static_cast<size_t>(kStride * p + 3)] = static_cast<T>(model.inv_mass[static_cast<size_t>(p)]);
     if (damped_) X0_ = P_;
     if (order_ == ProjectionOrder::Jacobi) build_jacobi(model);
   }

@@ -5,7 +5,10 @@
 // No per-projection temporaries beyond registers, no calls, no branches on the kind. What each
 // computes is what the per-item kernels of solvers/kernels.hpp compute (the reference
 // implementation, compared with these in tests/solvers/test_compiled_projection.cpp), with the
-// inverse masses and the constant parts of the denominators precomputed at setup:
+// constant parts of the denominators precomputed at setup and each particle's inverse mass w read
+// with its coordinates (the fourth scalar of its row of P: 16 bytes an item fewer than arrays of
+// w per item, which the distance kernels, bound by memory, read before; docs/performance.md,
+// "Session 34"):
 //
 //   pbd, distance:  d = x1 - x0, f = (|d| - rest) / |d|, x0 += a0 f d, x1 -= a1 f d,
 //                   a_i = k w_i / (w0 + w1)                      (Mueller et al. 2007, sec. 3.3)
@@ -34,8 +37,9 @@
 
 namespace pbdbench {
 
-inline constexpr int kStride = 4;  // scalars per particle in a positions array: x, y, z, and a
-                                   // fourth never read (0), so that a particle is one 4-vector
+inline constexpr int kStride = 4;  // scalars per particle in a positions array: x, y, z and the
+                                   // inverse mass w (1/kg), so that a particle is one 4-vector and
+                                   // a kernel has its w with its coordinates
 
 // Which projection the sweeps apply.
 enum class ProjectionRule : std::uint8_t {
@@ -55,7 +59,8 @@ struct KindBlock {
   int count = 0;
   std::array<std::vector<std::int32_t>, 4> offset;    // [i] (count): kStride x the i-th particle's
                                                       // index, where it starts in a positions array
-  std::array<std::vector<T>, 4> inv_mass;             // [i] (count) 1/kg
+  std::array<std::vector<T>, 4> inv_mass;             // [i] (count) 1/kg (setup's: the kernels
+                                                      // read w from the positions, kStride)
   std::vector<T> rest;                                // (count) rest value, units of C
   std::array<std::vector<T>, kCoefficients> coef;     // [c] (count), see above
   std::array<std::vector<T>, 9> rest_inverse;         // [3 r + c] (count) FEM kinds: Dm^-1, 1/m
@@ -86,7 +91,6 @@ inline void store3(T* P, std::int32_t p, const V3<T>& v) {
 template <class T>
 struct BlockView {
   const std::int32_t* offset[4] = {};  // kStride x particle index (KindBlock::offset)
-  const T* inv_mass[4] = {};
   const T* rest = nullptr;
   const T* coef[KindBlock<T>::kCoefficients] = {};
   const T* rest_inverse[9] = {};
@@ -95,10 +99,7 @@ struct BlockView {
 template <class T>
 inline BlockView<T> view(KindBlock<T>& b) {
   BlockView<T> v;
-  for (int i = 0; i < 4; ++i) {
-    v.offset[i] = b.offset[static_cast<size_t>(i)].data();
-    v.inv_mass[i] = b.inv_mass[static_cast<size_t>(i)].data();
-  }
+  for (int i = 0; i < 4; ++i) v.offset[i] = b.offset[static_cast<size_t>(i)].data();
   v.rest = b.rest.data();
   for (int c = 0; c < KindBlock<T>::kCoefficients; ++c) v.coef[c] = b.coef[static_cast<size_t>(c)].data();
   for (int k = 0; k < 9; ++k) v.rest_inverse[k] = b.rest_inverse[static_cast<size_t>(k)].data();
@@ -157,9 +158,9 @@ struct Lanes {
       v.store(a);
     }
   }
-  // A particle's coordinates move as whole vectors, transposed into x, y and z (and back for
-  // the stores, the fourth scalar written as the 0 it is; a pack whose lanes are all written
-  // stores without testing each): in 4-lane double packs (AVX2) one 32-byte vector a particle;
+  // A particle's coordinates move as whole vectors, transposed into x, y, z and w (and back for
+  // the stores, w written as it was read; a pack whose lanes are all written stores without
+  // testing each): in 4-lane double packs (AVX2) one 32-byte vector a particle;
   // in 2- and 8-lane double packs two 16-byte halves, (x, y) and (z, 0), the even lanes' side by
   // side in one pack and the odd lanes' in another, then unpacked; in float packs one 16-byte
   // quarter (x, y, z, 0), four lanes' quarters transposed in each 16-byte block of the pack.
@@ -170,6 +171,11 @@ struct Lanes {
   static constexpr bool kQuarters = std::is_same_v<T, float> && (kWidth == 4 || kWidth == 8 || kWidth == 16);
   typedef T Half __attribute__((vector_size(16), aligned(sizeof(T))));
   PBDBENCH_INLINE V3<L> position(const T* P, const std::int32_t* idx) const {
+    L w;
+    return position(P, idx, w);
+  }
+  // The same, and the particles' fourth scalars (their inverse masses) into w.
+  PBDBENCH_INLINE V3<L> position(const T* P, const std::int32_t* idx, L& w) const {
     V3<L> out;
     if constexpr (kWhole) {
       // Lane k's particle in one load, the four transposed.
@@ -181,6 +187,7 @@ struct Lanes {
       out.x = L::of(__builtin_shufflevector(t0, t2, 0, 1, 4, 5));
       out.y = L::of(__builtin_shufflevector(t1, t3, 0, 1, 4, 5));
       out.z = L::of(__builtin_shufflevector(t0, t2, 2, 3, 6, 7));
+      w = L::of(__builtin_shufflevector(t1, t3, 2, 3, 6, 7));
     } else if constexpr (kHalves) {
       // Half h (0: x, y; 1: z, 0) of the particles of lanes first, first + 2, ... in one pack.
       const auto halves = [&](int first, int h) PBDBENCH_INLINE_LAMBDA -> typename L::V {
@@ -196,9 +203,11 @@ struct Lanes {
         }
       };
       const auto xy_even = halves(0, 0), xy_odd = halves(1, 0);
+      const auto zw_even = halves(0, 1), zw_odd = halves(1, 1);
       out.x = L::of(unpack_lo(xy_even, xy_odd));
       out.y = L::of(unpack_hi(xy_even, xy_odd));
-      out.z = L::of(unpack_lo(halves(0, 1), halves(1, 1)));
+      out.z = L::of(unpack_lo(zw_even, zw_odd));
+      w = L::of(unpack_hi(zw_even, zw_odd));
     } else if constexpr (kQuarters) {
       // The particles of lanes k, k + 4, ... in the blocks of one pack: block b of quarters(k)
       // is lane 4 b + k's (x, y, z, 0).
@@ -218,25 +227,29 @@ struct Lanes {
       const auto xy01 = mix<Mix::LoPairs>(q0, q1), xy23 = mix<Mix::LoPairs>(q2, q3);
       out.x = L::of(mix<Mix::LoHalves>(xy01, xy23));
       out.y = L::of(mix<Mix::HiHalves>(xy01, xy23));
-      out.z = L::of(mix<Mix::LoHalves>(mix<Mix::HiPairs>(q0, q1), mix<Mix::HiPairs>(q2, q3)));
+      const auto zw01 = mix<Mix::HiPairs>(q0, q1), zw23 = mix<Mix::HiPairs>(q2, q3);
+      out.z = L::of(mix<Mix::LoHalves>(zw01, zw23));
+      w = L::of(mix<Mix::HiHalves>(zw01, zw23));
     } else {
       for (int k = 0; k < kWidth; ++k) {
         const T* q = P + idx[lane(k)];
         out.x.set(k, q[0]);
         out.y.set(k, q[1]);
         out.z.set(k, q[2]);
+        w.set(k, q[3]);
       }
     }
     return out;
   }
-  PBDBENCH_INLINE void store(T* P, const std::int32_t* idx, const V3<L>& v, int lanes) const {
+  // The positions v of the lanes set in `lanes` (and the active), with the fourth scalars w the
+  // particles had when read (position(P, idx, w)).
+  PBDBENCH_INLINE void store(T* P, const std::int32_t* idx, const V3<L>& v, const L& w, int lanes) const {
     lanes &= active();
     if constexpr (kWhole) {
       using V = typename L::V;
       typedef T Whole __attribute__((vector_size(32), aligned(sizeof(T))));
-      const V zero{};
       const V t0 = __builtin_shufflevector(v.x.v, v.z.v, 0, 1, 4, 5), t2 = __builtin_shufflevector(v.x.v, v.z.v, 2, 3, 6, 7);
-      const V t1 = __builtin_shufflevector(v.y.v, zero, 0, 1, 4, 5), t3 = __builtin_shufflevector(v.y.v, zero, 2, 3, 6, 7);
+      const V t1 = __builtin_shufflevector(v.y.v, w.v, 0, 1, 4, 5), t3 = __builtin_shufflevector(v.y.v, w.v, 2, 3, 6, 7);
       const V r[4] = {__builtin_shufflevector(t0, t1, 0, 4, 2, 6), __builtin_shufflevector(t0, t1, 1, 5, 3, 7),
                       __builtin_shufflevector(t2, t3, 0, 4, 2, 6), __builtin_shufflevector(t2, t3, 1, 5, 3, 7)};
       if (lanes == 15) {
@@ -247,9 +260,8 @@ struct Lanes {
       }
     } else if constexpr (kHalves) {
       using V = typename L::V;
-      const V zero{};
       const V xy[2] = {unpack_lo(v.x.v, v.y.v), unpack_hi(v.x.v, v.y.v)};  // even lanes, odd lanes
-      const V z[2] = {unpack_lo(v.z.v, zero), unpack_hi(v.z.v, zero)};
+      const V z[2] = {unpack_lo(v.z.v, w.v), unpack_hi(v.z.v, w.v)};
       // Lane K's particle; with Every (all lanes written, as nearly always) without testing it.
       const auto put = [&]<int K, bool Every>() PBDBENCH_INLINE_LAMBDA {
         if (!Every && !((lanes >> K) & 1)) return;
@@ -265,10 +277,9 @@ struct Lanes {
       else put_lanes.template operator()<false>(std::make_integer_sequence<int, kWidth>{});
     } else if constexpr (kQuarters) {
       using V = typename L::V;
-      const V zero{};
       const V xy01 = mix<Mix::LoPairs>(v.x.v, v.y.v), xy23 = mix<Mix::HiPairs>(v.x.v, v.y.v);
-      const V z01 = mix<Mix::LoPairs>(v.z.v, zero), z23 = mix<Mix::HiPairs>(v.z.v, zero);
-      // Block b of q[k]: lane 4 b + k's (x, y, z, 0).
+      const V z01 = mix<Mix::LoPairs>(v.z.v, w.v), z23 = mix<Mix::HiPairs>(v.z.v, w.v);
+      // Block b of q[k]: lane 4 b + k's (x, y, z, w).
       const V q[4] = {mix<Mix::LoHalves>(xy01, z01), mix<Mix::HiHalves>(xy01, z01),
                       mix<Mix::LoHalves>(xy23, z23), mix<Mix::HiHalves>(xy23, z23)};
       const auto put = [&]<int K, bool Every>() PBDBENCH_INLINE_LAMBDA {
@@ -366,7 +377,8 @@ inline long pbd_distance(const BlockView<T>& b, int begin, int end, T* P, const 
   return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
     using Ln = decltype(ln);
     using L = typename Ln::L;
-    const V3<L> x0 = ln.position(P, b.offset[0] + s), x1 = ln.position(P, b.offset[1] + s);
+    L w0, w1;
+    const V3<L> x0 = ln.position(P, b.offset[0] + s, w0), x1 = ln.position(P, b.offset[1] + s, w1);
     const V3<L> d = x1 - x0;
     const L len = lane_sqrt(dot(d, d));
     const auto ok = len > L(T(0));
@@ -380,11 +392,11 @@ inline long pbd_distance(const BlockView<T>& b, int begin, int end, T* P, const 
     } else {
       int write0 = valid, write1 = valid;
       if constexpr (Anchored) {
-        write0 &= ln.bits(ln.value(b.inv_mass[0] + s) != L(T(0)));
-        write1 &= ln.bits(ln.value(b.inv_mass[1] + s) != L(T(0)));
+        write0 &= ln.bits(w0 != L(T(0)));
+        write1 &= ln.bits(w1 != L(T(0)));
       }
-      ln.store(P, b.offset[0] + s, x0 + a0 * d, write0);
-      ln.store(P, b.offset[1] + s, x1 - a1 * d, write1);
+      ln.store(P, b.offset[0] + s, x0 + a0 * d, w0, write0);
+      ln.store(P, b.offset[1] + s, x1 - a1 * d, w1, write1);
     }
     return ln.skipped(valid);
   });
@@ -414,10 +426,7 @@ inline long pbd_four(const BlockView<T>& b, int begin, int end, T* P, const Jaco
     using L = typename Ln::L;
     V3<L> x[4];
     L ws[4];
-    for (int i = 0; i < 4; ++i) {
-      x[i] = ln.position(P, b.offset[i] + s);
-      ws[i] = ln.value(b.inv_mass[i] + s);
-    }
+    for (int i = 0; i < 4; ++i) x[i] = ln.position(P, b.offset[i] + s, ws[i]);
     const StencilEval<L> e = eval4<Kind>(b, s, x, ln);
     const L wsum = ws[0] * dot(e.grad[0], e.grad[0]) + ws[1] * dot(e.grad[1], e.grad[1]) +
                    ws[2] * dot(e.grad[2], e.grad[2]) + ws[3] * dot(e.grad[3], e.grad[3]);
@@ -428,7 +437,7 @@ inline long pbd_four(const BlockView<T>& b, int begin, int end, T* P, const Jaco
     for (int i = 0; i < 4; ++i) {
       const V3<L> dx = -((scale * ws[i]) * e.grad[static_cast<size_t>(i)]);
       if constexpr (Jacobi) put_correction(ln, J, s, i, ok, dx);
-      else ln.store(P, b.offset[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
+      else ln.store(P, b.offset[i] + s, x[i] + dx, ws[i], valid & ln.bits(ws[i] != zero));
     }
     return ln.skipped(valid);
   });
@@ -443,7 +452,8 @@ inline long xpbd_distance(const BlockView<T>& b, int begin, int end, T* P, const
   return over_items<T, W>(begin, end, [&](int s, auto ln) PBDBENCH_INLINE_LAMBDA -> long {
     using Ln = decltype(ln);
     using L = typename Ln::L;
-    const V3<L> x0 = ln.position(P, b.offset[0] + s), x1 = ln.position(P, b.offset[1] + s);
+    L w0, w1;
+    const V3<L> x0 = ln.position(P, b.offset[0] + s, w0), x1 = ln.position(P, b.offset[1] + s, w1);
     const V3<L> d = x1 - x0;
     const L len = lane_sqrt(dot(d, d));
     const L inv_d = ln.value(b.coef[2] + s);  // 1/D, 0 when D <= 0
@@ -458,7 +468,6 @@ inline long xpbd_distance(const BlockView<T>& b, int begin, int end, T* P, const
     }
     const L dlambda = lane_select(ok, num * inv_d, zero);
     const L q = dlambda * inv_len;
-    const L w0 = ln.value(b.inv_mass[0] + s), w1 = ln.value(b.inv_mass[1] + s);
     const L q0 = w0 * q, q1 = w1 * q;
     const int valid = ln.bits(ok);
     if constexpr (Jacobi) {
@@ -472,8 +481,8 @@ inline long xpbd_distance(const BlockView<T>& b, int begin, int end, T* P, const
         write0 &= ln.bits(w0 != zero);
         write1 &= ln.bits(w1 != zero);
       }
-      ln.store(P, b.offset[0] + s, x0 - q0 * d, write0);
-      ln.store(P, b.offset[1] + s, x1 + q1 * d, write1);
+      ln.store(P, b.offset[0] + s, x0 - q0 * d, w0, write0);
+      ln.store(P, b.offset[1] + s, x1 + q1 * d, w1, write1);
     }
     return ln.skipped(valid);
   });
@@ -487,10 +496,7 @@ inline long xpbd_four(const BlockView<T>& b, int begin, int end, T* P, const T* 
     using L = typename Ln::L;
     V3<L> x[4];
     L ws[4];
-    for (int i = 0; i < 4; ++i) {
-      x[i] = ln.position(P, b.offset[i] + s);
-      ws[i] = ln.value(b.inv_mass[i] + s);
-    }
+    for (int i = 0; i < 4; ++i) x[i] = ln.position(P, b.offset[i] + s, ws[i]);
     const StencilEval<L> e = eval4<Kind>(b, s, x, ln);
     const L alpha = ln.value(b.coef[0] + s), gamma = ln.value(b.coef[1] + s);
     const L wsum = ws[0] * dot(e.grad[0], e.grad[0]) + ws[1] * dot(e.grad[1], e.grad[1]) +
@@ -513,7 +519,7 @@ inline long xpbd_four(const BlockView<T>& b, int begin, int end, T* P, const T* 
     for (int i = 0; i < 4; ++i) {
       const V3<L> dx = (ws[i] * dlambda) * e.grad[static_cast<size_t>(i)];
       if constexpr (Jacobi) put_correction(ln, J, s, i, ok, dx);
-      else ln.store(P, b.offset[i] + s, x[i] + dx, valid & ln.bits(ws[i] != zero));
+      else ln.store(P, b.offset[i] + s, x[i] + dx, ws[i], valid & ln.bits(ws[i] != zero));
     }
     return ln.skipped(valid);
   });

@@ -285,18 +285,14 @@ TEST(CompiledProjection, LevelsAndColoursAreTheOneByOneOrderBitForBit) {
 struct KernelCase {
   ConstraintKind kind;
   int arity;
-  std::vector<double> P, X0;                        // (n x kStride)
+  std::vector<double> P, X0;                        // (n x kStride), each row's fourth its w
   std::array<std::vector<std::int32_t>, 4> offset;  // kStride x particle index
-  std::array<std::vector<double>, 4> inv_mass;
   std::vector<double> rest, lambda, compliance;
   std::array<std::vector<double>, 3> coef;
   std::array<std::vector<double>, 9> rest_inverse;
   BlockView<double> view() {
     BlockView<double> v;
-    for (int i = 0; i < arity; ++i) {
-      v.offset[i] = offset[static_cast<size_t>(i)].data();
-      v.inv_mass[i] = inv_mass[static_cast<size_t>(i)].data();
-    }
+    for (int i = 0; i < arity; ++i) v.offset[i] = offset[static_cast<size_t>(i)].data();
     v.rest = rest.data();
     for (int c = 0; c < 3; ++c) v.coef[c] = coef[static_cast<size_t>(c)].data();
     for (int k = 0; k < 9; ++k) v.rest_inverse[k] = rest_inverse[static_cast<size_t>(k)].data();
@@ -322,7 +318,7 @@ KernelCase kernel_case(ConstraintKind kind, int count, unsigned seed) {
   for (int i = 0; i < c.arity; ++i)
     for (int s = 0; s < count; ++s) {
       c.offset[static_cast<size_t>(i)].push_back(kStride * (c.arity * s + i));
-      c.inv_mass[static_cast<size_t>(i)].push_back(s % 7 == 3 && i == 1 ? 0.0 : pos(rng));
+      c.P[static_cast<size_t>(kStride * (c.arity * s + i) + 3)] = s % 7 == 3 && i == 1 ? 0.0 : pos(rng);
     }
   for (int s = 0; s < count; ++s) {
     c.rest.push_back(kind == ConstraintKind::Bending ? 2.0 * pos(rng) : pos(rng));
@@ -345,8 +341,8 @@ std::vector<int> widths() {
 // Lanes::position and Lanes::store (solvers/projection_kernels.hpp) in packs of every width, 64
 // bytes included (GCC's generic vectors, lowered to the registers this file is compiled for, so
 // that the 8-lane shuffles are checked on any processor): lane k holds the coordinates of the
-// particle at offset idx[k], full and partial packs; a store writes x, y, z of the lanes asked for,
-// the fourth scalar 0, and no other particle.
+// particle at offset idx[k] (x, y, z, and its fourth scalar w), full and partial packs; a store
+// writes x, y, z and w of the lanes asked for, and no other particle.
 template <class T, int Bytes, bool Partial>
 void check_lanes(int n_active) {
   using W = Pack<T, Bytes>;
@@ -355,30 +351,39 @@ void check_lanes(int n_active) {
   const int particles = 3 * kW + 5;
   std::vector<T> P(static_cast<size_t>(kStride * particles), T(0));
   for (int p = 0; p < particles; ++p)
-    for (int a = 0; a < 3; ++a) P[static_cast<size_t>(kStride * p + a)] = static_cast<T>(10 * p + a + 1);
+    for (int a = 0; a < 4; ++a) P[static_cast<size_t>(kStride * p + a)] = static_cast<T>(10 * p + a + 1);
   // The lanes' particles: distinct, out of order.
   std::vector<std::int32_t> idx;
   for (int k = 0; k < kW; ++k) idx.push_back(kStride * ((7 * k + 3) % particles));
   Ln ln;
   if constexpr (Partial) ln.n = n_active;
-  const V3<W> x = ln.position(P.data(), idx.data());
+  W w;
+  const V3<W> x = ln.position(P.data(), idx.data(), w);
+  const V3<W> x_only = ln.position(P.data(), idx.data());
   for (int k = 0; k < kW; ++k) {
     const int p = idx[static_cast<size_t>(Partial && k >= n_active ? 0 : k)] / kStride;
     EXPECT_EQ(x.x[k], static_cast<T>(10 * p + 1)) << Bytes << " bytes, lane " << k;
     EXPECT_EQ(x.y[k], static_cast<T>(10 * p + 2)) << Bytes << " bytes, lane " << k;
     EXPECT_EQ(x.z[k], static_cast<T>(10 * p + 3)) << Bytes << " bytes, lane " << k;
+    EXPECT_EQ(w[k], static_cast<T>(10 * p + 4)) << Bytes << " bytes, lane " << k;
+    EXPECT_EQ(x_only.x[k], x.x[k]);
+    EXPECT_EQ(x_only.y[k], x.y[k]);
+    EXPECT_EQ(x_only.z[k], x.z[k]);
   }
-  // Store lane k's particle moved by -(k + 1) in x, -(k + 1) / 2 in y, -(k + 1) / 4 in z, for the
-  // lanes of a mask that leaves out lane 1 (and every lane, below).
+  // Store lane k's particle moved by -(k + 1) in x, -(k + 1) / 2 in y, -(k + 1) / 4 in z, and w
+  // by -(k + 1) / 8 (a store writes the w it is given), for the lanes of a mask that leaves out
+  // lane 1 (and every lane, below).
   for (const int mask : {(1 << kW) - 1 - 2, (1 << kW) - 1}) {
     std::vector<T> Q = P;
     V3<W> y{W(T(0)), W(T(0)), W(T(0))};
+    W yw(T(0));
     for (int k = 0; k < kW; ++k) {
       y.x.set(k, x.x[k] - static_cast<T>(k + 1));
       y.y.set(k, x.y[k] - static_cast<T>(k + 1) / 2);
       y.z.set(k, x.z[k] - static_cast<T>(k + 1) / 4);
+      yw.set(k, w[k] - static_cast<T>(k + 1) / 8);
     }
-    ln.store(Q.data(), idx.data(), y, mask);
+    ln.store(Q.data(), idx.data(), y, yw, mask);
     std::vector<T> expected = P;
     for (int k = 0; k < (Partial ? n_active : kW); ++k) {
       if (!((mask >> k) & 1)) continue;
@@ -386,6 +391,7 @@ void check_lanes(int n_active) {
       expected[o] = y.x[k];
       expected[o + 1] = y.y[k];
       expected[o + 2] = y.z[k];
+      expected[o + 3] = yw[k];
     }
     EXPECT_EQ(Q, expected) << Bytes << " bytes, " << (Partial ? n_active : kW) << " lanes, mask " << mask;
   }
