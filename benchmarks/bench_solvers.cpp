@@ -27,6 +27,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <time.h>
@@ -380,11 +381,21 @@ std::string cpu_model() {
   return "unknown";
 }
 
+// Appended part by part: GCC 12's -Wrestrict misfires on a chain of `+` of strings and literals.
 std::string name_of(const SolverCase& c) {
-  std::string n = "solver/" + c.scene;
-  if (c.kind >= 0) n += "/" + std::string(to_string(static_cast<ConstraintKind>(c.kind)));
-  return n + "/" + c.solver + "/" + to_string(c.order) + "/" + to_string(c.precision) + "/t" +
-         std::to_string(c.threads);
+  std::string n = "solver/";
+  const auto part = [&n](std::string_view s) {
+    n += s;
+    n += '/';
+  };
+  part(c.scene);
+  if (c.kind >= 0) part(to_string(static_cast<ConstraintKind>(c.kind)));
+  part(c.solver);
+  part(to_string(c.order));
+  part(to_string(c.precision));
+  n += 't';
+  n += std::to_string(c.threads);
+  return n;
 }
 
 }  // namespace

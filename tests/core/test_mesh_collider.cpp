@@ -66,7 +66,9 @@ TEST(MeshDistance, SignIsInsideOutsideForClosedMeshes) {
     const double analytic = p.norm() - R;
     const double d = mesh_distance(ico, p).distance;
     EXPECT_NEAR(d, analytic, sagitta) << test::str(p);
-    if (std::abs(analytic) > sagitta) EXPECT_EQ(d > 0.0, analytic > 0.0) << test::str(p);
+    if (std::abs(analytic) > sagitta) {
+      EXPECT_EQ(d > 0.0, analytic > 0.0) << test::str(p);
+    }
   }
 }
 

@@ -122,7 +122,9 @@ TEST(Experiment, EveryReproductionLoadsAndSaysWhatItReproduces) {
     for (const PartSpec& p : e.parts) {
       EXPECT_FALSE(p.published.empty()) << e.id << ": " << p.says;
       EXPECT_FALSE(p.source.empty()) << e.id << ": " << p.says;
-      if (p.rule) EXPECT_FALSE(p.ours.empty()) << e.id << ": " << p.says;
+      if (p.rule) {
+        EXPECT_FALSE(p.ours.empty()) << e.id << ": " << p.says;
+      }
     }
   }
 }

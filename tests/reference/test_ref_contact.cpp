@@ -188,7 +188,9 @@ TEST(RefBeContact, BallsInBowlNeverPenetrate) {
   for (int k = 0; k < 30; ++k) {  // 0.5 s: the pile lands and piles up
     const StepReport r = solver->step(sc.model, s, 1.0 / 60.0);
     ASSERT_GT(min_gap(sc.model, s.x, s.time), 0.0) << "step " << k;
-    if (k > 20) EXPECT_GT(r.contacts, 0);
+    if (k > 20) {
+      EXPECT_GT(r.contacts, 0);
+    }
     EXPECT_GT(r.newton_iterations, 0);
     EXPECT_LE(r.residual_position, be_options().ref_atol);
   }

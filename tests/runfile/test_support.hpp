@@ -60,9 +60,11 @@ void expect_declared(const FileRead<Content>& read, const std::vector<AttributeI
     ASSERT_NE(a, nullptr) << "the root attribute " << name << " is written but not declared";
     EXPECT_NE(a->type, AttributeType::Text) << name;
   }
-  for (const AttributeInfo& a : table)
-    if (a.name.find("<key>") == std::string::npos)
+  for (const AttributeInfo& a : table) {
+    if (a.name.find("<key>") == std::string::npos) {
       EXPECT_TRUE(read.attributes.count(a.name) + read.numbers.count(a.name) == 1) << a.name << " is not written";
+    }
+  }
 }
 
 // results/README.md carries `markdown` (a layout's table) verbatim.

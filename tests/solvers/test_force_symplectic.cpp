@@ -330,7 +330,9 @@ TEST(ForceSymplectic, InternalForcesConserveLinearAndAngularMomentum) {
     const double scale = std::max(scale0, momentum_scale(m, s));
     EXPECT_LT((linear_momentum(m, s) - p0).norm(), kRoundoff * scale) << "seed " << seed;
     EXPECT_LT((angular_momentum(m, s) - l0).norm(), kRoundoff * scale) << "seed " << seed;
-    if (seed == 1) EXPECT_GT(r.active_contacts, 0);  // particle contacts did act
+    if (seed == 1) {
+      EXPECT_GT(r.active_contacts, 0);  // particle contacts did act
+    }
   }
 }
 
