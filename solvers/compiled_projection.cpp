@@ -184,7 +184,8 @@ class Program final : public CompiledProjection {
         b.coef[1][z] = static_cast<T>(c.gamma);
         if (b.kind == ConstraintKind::Distance) {
           // D = (1 + gamma)(w0 + w1) + alpha~, in T as the kernel would; 0 marks D <= 0 (skipped).
-          const T w = b.inv_mass[0][z] + b.inv_mass[1][z];
+          // The inverse masses are the positions' fourth scalars (projection_kernels.hpp, kStride).
+          const T w = P_[static_cast<size_t>(b.offset[0][z] + 3)] + P_[static_cast<size_t>(b.offset[1][z] + 3)];
           const T D = (T(1) + b.coef[1][z]) * w + b.coef[0][z];
           b.coef[2][z] = D > T(0) ? T(1) / D : T(0);
         }
@@ -435,11 +436,8 @@ class Program final : public CompiledProjection {
       b.item.push_back(key.index);
       b.rest.push_back(static_cast<T>(c.rest));
       b.rest_double.push_back(c.rest);
-      for (int i = 0; i < b.arity; ++i) {
-        const int p = c.particles[static_cast<size_t>(i)];
-        b.offset[static_cast<size_t>(i)].push_back(kStride * p);
-        b.inv_mass[static_cast<size_t>(i)].push_back(static_cast<T>(model.inv_mass[static_cast<size_t>(p)]));
-      }
+      for (int i = 0; i < b.arity; ++i)
+        b.offset[static_cast<size_t>(i)].push_back(kStride * c.particles[static_cast<size_t>(i)]);
       // pbd: the explicit k (solver.pbd.material = stiffness), or 1 until set_substep derives
       // it from the compliance for its h (solvers/pbd_material.hpp).
       const double k = rule_ != ProjectionRule::Pbd || pbd_derived_

@@ -59,8 +59,6 @@ struct KindBlock {
   int count = 0;
   std::array<std::vector<std::int32_t>, 4> offset;    // [i] (count): kStride x the i-th particle's
                                                       // index, where it starts in a positions array
-  std::array<std::vector<T>, 4> inv_mass;             // [i] (count) 1/kg (setup's: the kernels
-                                                      // read w from the positions, kStride)
   std::vector<T> rest;                                // (count) rest value, units of C
   std::array<std::vector<T>, kCoefficients> coef;     // [c] (count), see above
   std::array<std::vector<T>, 9> rest_inverse;         // [3 r + c] (count) FEM kinds: Dm^-1, 1/m
