@@ -144,7 +144,10 @@ void write_ints(H5::H5File& f, const std::string& name, const std::vector<hsize_
 
 std::string dims_text(const std::vector<hsize_t>& d) {
   std::string s;
-  for (hsize_t x : d) s += (s.empty() ? "" : " ") + std::to_string(x);
+  for (hsize_t x : d) {
+    if (!s.empty()) s += ' ';
+    s += std::to_string(x);
+  }
   return s;
 }
 
@@ -159,7 +162,8 @@ std::string frame_item(const std::string& file_and_path, hsize_t f, hsize_t fram
   for (size_t k = 1; k < rank; ++k) {
     start += " 0";
     stride += " 1";
-    count += " " + std::to_string(full[k]);
+    count += ' ';
+    count += std::to_string(full[k]);
   }
   return fmt::format(
       "<DataItem ItemType=\"HyperSlab\" Dimensions=\"{}\" Type=\"HyperSlab\">"
