@@ -6,9 +6,8 @@
 // computes is what the per-item kernels of solvers/kernels.hpp compute (the reference
 // implementation, compared with these in tests/solvers/test_compiled_projection.cpp), with the
 // constant parts of the denominators precomputed at setup and each particle's inverse mass w read
-// with its coordinates (the fourth scalar of its row of P: 16 bytes an item fewer than arrays of
-// w per item, which the distance kernels, bound by memory, read before; docs/performance.md,
-// "Session 34"):
+// with its coordinates (the fourth scalar of its row of P: 16 bytes a distance item fewer than
+// the arrays of w per item read before; docs/performance.md, "Session 34"):
 //
 //   pbd, distance:  d = x1 - x0, f = (|d| - rest) / |d|, x0 += a0 f d, x1 -= a1 f d,
 //                   a_i = k w_i / (w0 + w1)                      (Mueller et al. 2007, sec. 3.3)
@@ -159,9 +158,9 @@ struct Lanes {
   // A particle's coordinates move as whole vectors, transposed into x, y, z and w (and back for
   // the stores, w written as it was read; a pack whose lanes are all written stores without
   // testing each): in 4-lane double packs (AVX2) one 32-byte vector a particle;
-  // in 2- and 8-lane double packs two 16-byte halves, (x, y) and (z, 0), the even lanes' side by
+  // in 2- and 8-lane double packs two 16-byte halves, (x, y) and (z, w), the even lanes' side by
   // side in one pack and the odd lanes' in another, then unpacked; in float packs one 16-byte
-  // quarter (x, y, z, 0), four lanes' quarters transposed in each 16-byte block of the pack.
+  // quarter (x, y, z, w), four lanes' quarters transposed in each 16-byte block of the pack.
   // Values one at a time made every lane three loads and inserts (docs/performance.md, "Session
   // 31"). Only data moves: the same bits either way.
   static constexpr bool kWhole = std::is_same_v<T, double> && kWidth == 4;
@@ -187,7 +186,7 @@ struct Lanes {
       out.z = L::of(__builtin_shufflevector(t0, t2, 2, 3, 6, 7));
       w = L::of(__builtin_shufflevector(t1, t3, 2, 3, 6, 7));
     } else if constexpr (kHalves) {
-      // Half h (0: x, y; 1: z, 0) of the particles of lanes first, first + 2, ... in one pack.
+      // Half h (0: x, y; 1: z, w) of the particles of lanes first, first + 2, ... in one pack.
       const auto halves = [&](int first, int h) PBDBENCH_INLINE_LAMBDA -> typename L::V {
         const auto at = [&](int k) PBDBENCH_INLINE_LAMBDA {
           return reinterpret_cast<const Half*>(P + idx[lane(k)])[h];
@@ -208,7 +207,7 @@ struct Lanes {
       w = L::of(unpack_hi(zw_even, zw_odd));
     } else if constexpr (kQuarters) {
       // The particles of lanes k, k + 4, ... in the blocks of one pack: block b of quarters(k)
-      // is lane 4 b + k's (x, y, z, 0).
+      // is lane 4 b + k's (x, y, z, w).
       const auto quarters = [&](int k) PBDBENCH_INLINE_LAMBDA -> typename L::V {
         const auto at = [&](int l) PBDBENCH_INLINE_LAMBDA { return *reinterpret_cast<const Half*>(P + idx[lane(l)]); };
         if constexpr (kWidth == 4) {
@@ -297,6 +296,7 @@ struct Lanes {
         q[0] = v.x[k];
         q[1] = v.y[k];
         q[2] = v.z[k];
+        q[3] = w[k];
       }
     }
   }
