@@ -43,7 +43,7 @@ namespace {
 [[noreturn]] void fail(const fs::path& file, int line, const std::string& key,
                        const std::string& message) {
   std::string where = file.string();
-  if (line > 0) where += ":" + std::to_string(line);
+  if (line > 0) where += fmt::format(":{}", line);
   throw ExperimentError(where + ": " + (key.empty() ? "" : key + ": ") + message);
 }
 

@@ -32,6 +32,9 @@ std::string cell(const std::string& text) {
   return out;
 }
 
+// A table cell of code: the text between backticks, or nothing for no text.
+std::string code_cell(const std::string& text) { return text.empty() ? "" : fmt::format("`{}`", cell(text)); }
+
 // A Markdown block quote of a text that may span lines.
 std::string block_quote(const std::string& text) {
   std::string out = "> ";
@@ -155,7 +158,7 @@ void revisions_section(std::ostringstream& md, const RegistrationStatus* st) {
         const auto rule = e.rules.find(id);
         const auto says = e.says.find(id);
         md << fmt::format("| {} | {} | {} | {} |\n", id, says == e.says.end() ? "" : cell(says->second),
-                          rule == e.rules.end() || rule->second.empty() ? "" : "`" + cell(rule->second) + "`",
+                          rule == e.rules.end() ? "" : code_cell(rule->second),
                           verdict);
       }
       md << "\n";
@@ -264,7 +267,7 @@ std::string reproduction_markdown(const std::vector<ClaimResult>& items, const R
         for (const MeasureResult& m : c.measures)
           if (m.name == p.ours) ours = measure_value(m);
       md << fmt::format("| [{}](#{}) {} | {} | {} | {} | {} | **{}** |\n", part_id(c, k), anchor(c.id), cell(p.says),
-                        cell(p.published), cell(p.source), cell(ours), p.rule.empty() ? "" : "`" + cell(p.rule) + "`",
+                        cell(p.published), cell(p.source), cell(ours), code_cell(p.rule),
                         verdict_word(p.verdict, c.kind));
     }
   }
@@ -288,7 +291,7 @@ std::string reproduction_markdown(const std::vector<ClaimResult>& items, const R
     for (size_t k = 0; k < c.parts.size(); ++k) {
       const PartResult& p = c.parts[k];
       const std::string ours = p.ours.empty() ? "" : fmt::format("{} = {}", p.ours, with_units(p.ours_value, p.ours_units));
-      std::string rule = p.rule.empty() ? "" : "`" + cell(p.rule) + "`";
+      std::string rule = code_cell(p.rule);
       if (!p.requires_.empty()) rule += " (requires `" + cell(p.requires_) + "`)";
       md << fmt::format("| {}: {} | {} | {} | {} | {} | {} |\n", part_id(c, k), cell(p.says), cell(p.published),
                         cell(p.source), cell(ours), rule, cell(verdict_with_reason(p, c.kind)));

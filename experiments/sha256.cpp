@@ -63,7 +63,7 @@ std::string sha256_hex(std::string_view bytes) {
   for (; i + 64 <= n; i += 64) compress(h, reinterpret_cast<const unsigned char*>(bytes.data() + i));
   // Padding: 0x80, zeros, and the message length in bits as a 64-bit big-endian number.
   unsigned char tail[128] = {};
-  const std::size_t rest = n - i;
+  const std::size_t rest = (n - i) % 64;  // n - i < 64 (the loop above); the % says so to GCC
   for (std::size_t k = 0; k < rest; ++k) tail[k] = static_cast<unsigned char>(bytes[i + k]);
   tail[rest] = 0x80;
   const std::size_t tail_len = rest + 1 + 8 <= 64 ? 64 : 128;

@@ -271,7 +271,8 @@ TEST(Describe, FemGroupsSayWhatEachSolverUses) {
     std::istringstream lines(describe_config(c, false, 100));
     for (std::string line; std::getline(lines, line);) {
       EXPECT_LE(line.size(), 100u) << line;
-      flat += " " + line.substr(std::min(line.find_first_not_of(' '), line.size()));
+      flat += ' ';
+      flat += line.substr(std::min(line.find_first_not_of(' '), line.size()));
     }
     return flat;
   };
