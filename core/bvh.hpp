@@ -1,6 +1,5 @@
 // A bounding volume hierarchy over a static triangle mesh: the building block of a mesh collider
-// (issue 17; not yet wired into Model's colliders or core/contacts.hpp) and of vertex-triangle
-// contact. Axis-aligned boxes, split at the median of the triangles' centroids along the box's
+// (core/mesh_collider.hpp) and of vertex-triangle contact (core/surface_contact.hpp). Axis-aligned boxes, split at the median of the triangles' centroids along the box's
 // longest axis, at most kLeafSize triangles a leaf. Built once; queries are const and
 // thread-safe. A mesh whose vertices move (a cloth, a soft body) may be refit instead of rebuilt:
 // the same tree, its boxes recomputed bottom-up from the moved vertices (every box still bounds

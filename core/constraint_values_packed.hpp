@@ -31,8 +31,8 @@ struct RunsView {
 // into the lanes of x, y and z: each row's (x, y) in one 16-byte load and its z in a scalar
 // one, the even lanes' pairs side by side in one pack and the odd lanes' in another, then
 // interleaved (lane k's x is pair k's first value). Copying the coordinates one scalar at a time
-// into arrays and loading those made the gathering about half of this file's time
-// (docs/performance.md, "Session 32"). Only data moves: the same values either way.
+// into arrays and loading those made the gathering about half of this file's time (a profile of
+// metrics/measure/* of bench_solvers). Only data moves: the same values either way.
 template <class L, size_t... K>
 PBDBENCH_INLINE V3<L> gather_rows(const double* X, const std::int32_t* idx, std::index_sequence<K...>) {
   constexpr int W = L::kWidth;

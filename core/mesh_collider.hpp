@@ -1,4 +1,4 @@
-// A triangle mesh as a collider (issue 17): its placed vertices and triangles, a BVH over them
+// A triangle mesh as a collider: its placed vertices and triangles, a BVH over them
 // (core/bvh.hpp, the broad phase) and the signed distance of a point to it (the narrow phase:
 // the closest point on the nearest triangle, Ericson 2005, sec. 5.1.5).
 //

@@ -53,7 +53,7 @@ extern template void project_psd<12>(Eigen::Matrix<double, 12, 12>&);
 // The same projection by a fixed-size Householder tridiagonalisation and implicit QL iteration
 // with Wilkinson's shift (the eigenvectors' rotations applied to contiguous rows), every loop
 // bound a compile-time constant: the general projection to rounding, 1.2x Eigen's solver at 9 x 9
-// and 1.6x at 12 x 12 (psd/9/*, psd/12/* of bench_reference; docs/performance.md). Uses Eigen's
+// and 1.6x at 12 x 12 (psd/9/*, psd/12/* of bench_reference). Uses Eigen's
 // solver when an eigenvalue does not converge in 60 iterations (never seen).
 template <int N>
 void project_psd_tridiagonal_ql(Eigen::Matrix<double, N, N>& H);

@@ -1,4 +1,4 @@
-// Contact between surfaces (issue 17): vertex–triangle, a particle against a surface triangle of
+// Contact between surfaces: vertex–triangle, a particle against a surface triangle of
 // the model (the triangles of Model::triangles: a cloth's, a tet body's boundary, an imported
 // surface), and edge–edge, an edge of those triangles against another, under the same switches
 // and rules.

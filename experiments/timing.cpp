@@ -179,8 +179,8 @@ TimingResult time_group(const Experiment& ex, const TimingSpec& timing, Tier tie
   const fs::path dir = runs_dir / ex.id / "timing" / timing.name;
   r.status.assign(n, "complete");
   r.seconds_per_step.clear();
-  // The steps are timed with their logging inline (harness/step_logger.hpp), as every timing
-  // record before session 26 was: no logger thread reads memory beside the step being timed.
+  // The steps are timed with their logging inline (harness/step_logger.hpp): no logger thread
+  // reads memory beside the step being timed, and every timing is made the same way.
   RunControl control;
   control.logging = StepLogging::Inline;
   for (int repeat = 0; repeat <= timing.repeats; ++repeat) {  // repeat 0: the warm-up

@@ -47,9 +47,9 @@ struct TimingResult {
 
 // The configuration a run of the group is timed in: the experiment's (Experiment::timing_overrides)
 // and, for a solver that reads solver.threads when neither the experiment nor its scenario sets it,
-// solver.threads = 1. The experiments were registered when a run took one thread by default;
-// the default since session 29 (0: the run's cores or one, sweep by sweep, whichever its own
-// timings favour; docs/solvers.md) would make a timed run's thread count, and so a cost ratio,
+// solver.threads = 1. The experiments' timings are registered for one thread; the default
+// (0: the run's cores or one, sweep by sweep, whichever its own timings favour;
+// docs/solvers.md) would make a timed run's thread count, and so a cost ratio,
 // follow the machine's load rather than the experiment. The results of a run are the same bits
 // at any thread count; only its time depends on it.
 config::Config timing_config(const Experiment& experiment, const RunSpec& run, const TimingSpec& timing, Tier tier);

@@ -19,8 +19,8 @@ namespace pbdbench {
 
 namespace {
 
-// Costs (measured on the development machine, 2-core AMD EPYC, Release, while loaded; see
-// results/README.md, "The planned run"), rounded up: they are for refusing the impossible, not
+// Costs (measured on a 2-core AMD EPYC, Release build; see results/README.md, "The planned
+// run"), rounded up: they are for refusing the impossible, not
 // for predictions.
 constexpr double kProjectionSeconds = 2e-7;   // one constraint or contact projected once
 constexpr double kParticleSeconds = 1e-6;     // one particle, one step: prediction, metrics

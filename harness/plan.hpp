@@ -2,7 +2,7 @@
 // the time it will take, and whether this machine can take it.
 //
 // The estimates are orders of magnitude, not predictions: costs per constraint projection and per
-// particle measured on the development machine (plan.cpp), the largest data structures counted
+// particle measured on a 2-core AMD EPYC (plan.cpp), the largest data structures counted
 // from the model. They exist to refuse up front what would exhaust the memory or the disk, or
 // run for days, instead of finding out hours later; --force runs it anyway.
 #pragma once

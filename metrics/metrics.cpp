@@ -45,9 +45,10 @@ double max_distance_from_centroid(const Points& x) {
   return std::sqrt(d2);
 }
 
-// measure's quantities of the particles, in one pass over x, v and the inverse masses (they were
-// five: the energy and momentum, the finiteness of x and of v, the largest speed, the lowest
-// particle; docs/performance.md, session 33). Each quantity takes its particles in index order
+// measure's quantities of the particles (the energy and momentum, the finiteness of x and of v,
+// the largest speed, the lowest particle) in one pass over x, v and the inverse masses, which
+// are read from memory once a step instead of five times.
+// Each quantity takes its particles in index order
 // with the arithmetic it had in its own loop: the same bits.
 struct ParticleScan {
   double kinetic = 0.0, potential = 0.0;
@@ -252,7 +253,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   // elastic energy, summed in kLanes partial sums (lane k takes the run's constraints begin + k,
   // begin + k + kLanes, ...), added at the run's end in a fixed tree: a sum in one register
   // chains every constraint through the adder's latency, and this pass was most of measure's own
-  // time (docs/performance.md, session 29). The order depends on the model alone, so a sample is
+  // time (metrics/measure/* of bench_solvers). The order depends on the model alone, so a sample is
   // the same bits on every machine and build flags that keep IEEE double; it is not the bits of
   // the one-at-a-time sum (the lanes round differently, by a few ulps of the sum). A constraint
   // whose energy is not counted adds +0.0. The maxima ignore a NaN error; a NaN error makes its

@@ -25,7 +25,7 @@
 // so -grad D_k is the Coulomb force mu lambda opposite to the sliding, smoothed to zero below a
 // sliding speed |u| / h of eps_v (Li et al. 2020, eqs. 11 to 14).
 //
-// Surfaces (SurfaceBarrier below; issue 17): with scene.surface_contact (between bodies) or
+// Surfaces (SurfaceBarrier below): with scene.surface_contact (between bodies) or
 // scene.self_contact (within a body without tets), IPC's point-triangle and edge-edge pairs over
 // Model::triangles and their edges (core/proximity.hpp for the distances and the collision
 // check): the gap of a pair is its unsigned distance less its thickness (point-triangle: r_p +

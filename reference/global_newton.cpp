@@ -69,7 +69,7 @@ void project_row_block(Mat12& H, int k) {
 // step's factor_cost_ratio series: 0.34 to 1.91 on balls_in_bowl (with its contacts) and 0.67 on
 // hanging_chain (a factorisation is about as cheap as one iteration: reuse made balls_in_bowl
 // slower), 4.9 on cantilever_fem, 10.5 on cantilever_beam, 12 on soft_cube_drop and 54 on the
-// 64 x 64 hanging_cloth (docs/performance.md).
+// 64 x 64 hanging_cloth (each global-cholmod run file's factor_cost_ratio series).
 constexpr double kReuseCostRatio = 2.0;
 
 // Debian's CHOLMOD is built with num_threads(4) on its OpenMP regions (CHOLMOD_OMP_NUM_THREADS),
@@ -77,7 +77,7 @@ constexpr double kReuseCostRatio = 2.0;
 // regions and take the cores from the step. The global solvers step on one thread (their BLAS,
 // ATLAS, is serial, and the regions are copies and scatters of the factor), so CHOLMOD's calls run
 // with max-active-levels 0: every region on the calling thread alone, the same bits as with four
-// (docs/performance.md). The setting is an ICV of the calling thread, restored on leaving.
+// (the frames of cantilever_beam with and without OMP_THREAD_LIMIT=1). The setting is an ICV of the calling thread, restored on leaving.
 class SerialOpenMp {
  public:
   SerialOpenMp() : saved_(omp_get_max_active_levels()) { omp_set_max_active_levels(0); }
@@ -262,7 +262,7 @@ struct GlobalNewton::Impl {
       // keeps the one with the fewest nonzeros in L (its default tries METIS only when AMD's fill
       // is poor, and keeps AMD on the 64 x 64 cloth: 6.7e8 flops a factorisation against METIS's
       // 4.5e8). On the cloth NESDIS wins: 1.880 M nonzeros against METIS's 1.897 M, as many flops
-      // (4.55e8), and a factorisation faster with ATLAS (docs/performance.md). All three are
+      // (4.55e8), and a factorisation faster with ATLAS (global/* of bench_reference). All three are
       // deterministic.
       cholmod.cholmod().nmethods = 3;
       cholmod.cholmod().method[0].ordering = CHOLMOD_AMD;
@@ -307,7 +307,8 @@ struct GlobalNewton::Impl {
   // whose matrix showed a direction of non-positive curvature, or one that is not finite returns
   // false and this system is factorised. Every decision counts iterations only: the same inputs
   // give the same bits. The Newton steps are those of a direct solve to the tolerance (the same
-  // Newton iterations, positions within 4e-14 m on the scenes of docs/performance.md).
+  // Newton iterations, positions within 4e-14 m on the 64 x 64 cloth, the cantilever beam,
+  // cantilever_fem and soft_cube_drop, against solver.global.factor_reuse = false).
   bool solve_with_last_factor(const SpMat& A, const Eigen::VectorXd& b, Eigen::VectorXd& dq,
                               GlobalResult& result) {
     const int stale_after = options.global_reuse_iterations;

@@ -6,7 +6,7 @@
 // alone, they waited for the final publish's fsync, which then wrote the whole image at the end
 // of the run (192 ms at the end of a 20 s run of the 256 x 256 cloth, whose file is 370 MB), or,
 // while the working copy was renamed over the published file, for ext4 to start them inside each
-// rename, on the run's thread (about 100 ms over the same run; docs/performance.md, session 33).
+// rename, on the run's thread (about 100 ms over the same run).
 // Here each one's writeback is started (sync_file_range with SYNC_FILE_RANGE_WRITE: the dirty
 // pages are queued for the disk, nothing waits for them to get there). And a removed file's
 // pages and blocks are freed by the kernel in the close of its last descriptor (9.5 ms for the

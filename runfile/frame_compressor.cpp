@@ -96,7 +96,7 @@ long long FrameCompressor::submit(std::initializer_list<const void*> parts, size
     for (auto& copy : copies) todo_.emplace_back(submitted_++, std::move(copy));
   }
   // One wake for the parts together: waking the worker costs the submitting thread a system
-  // call (about 14 us each on the development machine's guest, a frame's positions and
+  // call (about 14 us each on a 2-core virtual machine, a frame's positions and
   // velocities woken apart).
   wake_worker_.notify_one();
   return first;

@@ -75,7 +75,7 @@ constexpr hsize_t kChunkRows = 256;  // rows per chunk of a series dataset
 // Frames are deflated at level 1 without the shuffle filter, off the stepping thread
 // (runfile/frame_compressor.hpp). On a 256 x 256 cloth's frames, level 1 without shuffle gave
 // smaller files than level 4 with shuffle (24.4 against 26.2 MB) in half the time (1.37 against
-// 2.63 s); docs/performance.md has the measurement and its command.
+// 2.63 s; scripts/frame_compression.py RUN.h5 times each setting on a run file's frames).
 constexpr int kGzipLevel = 1;
 // Publishing copies what changed since the last publish; it is spaced so that it takes at most
 // about 1/kPublishShare of the wall time.

@@ -325,7 +325,7 @@ PublishStats shadow_publish(hid_t file, const std::filesystem::path& published, 
   // also keeps ext4 from starting the new image's writeback inside the call, on the run's
   // thread (its replace-by-rename rule, auto_da_alloc, which is for power cuts, which a publish
   // that is not durable does not survive anyway: results/README.md, "Crash safety"); step 3
-  // starts it off this thread instead (docs/performance.md, "Session 33").
+  // starts it off this thread instead (runfile/disk_worker.hpp).
   // At the first publish over a file that was there before (a finished run's, which the writer
   // may replace: output_guard.hpp), the names are exchanged too and that file's new name removed.
   // Else, or where the exchange fails (a filesystem without it, <path> gone): the published file

@@ -19,7 +19,7 @@ each process are printed and kept in OUT/summary.json.
 
 With --load N, N other processes (each a busy loop of this Python) run on the machine from
 before the first round to after the last: what a shared machine's other tenants do, made
-reproducible (the comparison of thread counts under load in docs/performance.md).
+reproducible (for comparing thread counts on a loaded machine).
 
     /usr/bin/python3 scripts/bench_ab.py --rounds 6 --reps 3 \\
         --filter 'solver/cloth256_distance/(pbd|xpbd)/colored/double/t[12]' \\

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The tables of docs/performance.md from a bench_solvers JSON file (Google Benchmark's
+"""A table of every case of a bench_solvers JSON file (Google Benchmark's
 --benchmark_out, with its repetitions kept: --benchmark_repetitions=N, no
 --benchmark_report_aggregates_only).
 

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Times HDF5's deflate settings on a run file's frames (docs/performance.md, frames).
+"""Times HDF5's deflate settings on a run file's frames (the choice of runfile/run_file.cpp's kGzipLevel).
 
 Usage: scripts/frame_compression.py RUN.h5 [--repeats 3]
 

@@ -6,7 +6,7 @@
     perf script -i perf.data -F tid,ip,sym > perf.txt
     /usr/bin/python3 scripts/perf_shares.py perf.txt
 
-(docs/performance.md, the sessions on the harness's logging.) Each sample of `perf script`'s text
+Each sample of `perf script`'s text
 (a line with the thread id, then its frames innermost first, then a blank line) is put in the
 first part of PARTS whose name pattern one of its frames contains; a sample in none is "other".
 The run's thread is the thread with the most samples; shares are of its samples, and the other

@@ -129,7 +129,7 @@ struct SolverOptions {
                                     // run on (available_cores(): its share under sweep --jobs)
                                     // or one, for each sweep whichever its timings show faster
                                     // (solvers/sweep_threads.hpp: on a shared machine two
-                                    // threads can be slower than one, docs/performance.md)
+                                    // threads can be slower than one)
 
   // [solver.pbd]: Mueller et al. 2007.
   PbdMaterial pbd_material = PbdMaterial::Compliance;  // solver.pbd.material

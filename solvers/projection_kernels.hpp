@@ -6,8 +6,8 @@
 // computes is what the per-item kernels of solvers/kernels.hpp compute (the reference
 // implementation, compared with these in tests/solvers/test_compiled_projection.cpp), with the
 // constant parts of the denominators precomputed at setup and each particle's inverse mass w read
-// with its coordinates (the fourth scalar of its row of P: 16 bytes a distance item fewer than
-// the arrays of w per item read before; docs/performance.md, "Session 34"):
+// with its coordinates (the fourth scalar of its row of P: one gather brings both, and a distance
+// item streams 16 bytes fewer than with arrays of w per item):
 //
 //   pbd, distance:  d = x1 - x0, f = (|d| - rest) / |d|, x0 += a0 f d, x1 -= a1 f d,
 //                   a_i = k w_i / (w0 + w1)                      (Mueller et al. 2007, sec. 3.3)
@@ -161,8 +161,7 @@ struct Lanes {
   // in 2- and 8-lane double packs two 16-byte halves, (x, y) and (z, w), the even lanes' side by
   // side in one pack and the odd lanes' in another, then unpacked; in float packs one 16-byte
   // quarter (x, y, z, w), four lanes' quarters transposed in each 16-byte block of the pack.
-  // Values one at a time made every lane three loads and inserts (docs/performance.md, "Session
-  // 31"). Only data moves: the same bits either way.
+  // Values one at a time would make every lane three loads and inserts. Only data moves: the same bits either way.
   static constexpr bool kWhole = std::is_same_v<T, double> && kWidth == 4;
   static constexpr bool kHalves = std::is_same_v<T, double> && (kWidth == 2 || kWidth == 8);
   static constexpr bool kQuarters = std::is_same_v<T, float> && (kWidth == 4 || kWidth == 8 || kWidth == 16);

@@ -11,7 +11,7 @@
 // keeps projecting the same region of the mesh from colour to colour and the particles it writes
 // stay in its core's cache; when tasks were claimed from one shared counter, the thread of a
 // region changed from colour to colour and its particles moved between cores each time (the
-// 256x256 cloth, 2 threads: docs/performance.md, "Session 28"). A thread waits only for tasks
+// 256x256 cloth, 2 threads: solver/cloth256*/t2 of bench_solvers). A thread waits only for tasks
 // other threads are running, never for a thread to arrive: a thread that the operating system
 // has set aside holds nothing up unless it holds a task, since its share is taken by the others.
 //

@@ -1,9 +1,9 @@
 // How many threads the next projection sweep runs on, when solver.threads = 0 leaves it to the
 // run: the cores it may use, or one, whichever the run's own sweeps show to be faster.
 //
-// Two threads on a quiet 2-core machine made the 256x256 cloth's coloured sweeps 1.7 to 2.0 times
+// Two threads on an otherwise idle 2-core machine made the 256x256 cloth's coloured sweeps 1.7 to 2.0 times
 // as fast as one; with one other busy process on the machine, 0.5 to 0.8 times as fast
-// (docs/performance.md, "Session 29"): a thread the operating system sets aside in the middle of
+// (scripts/bench_ab.py, with and without --load 1): a thread the operating system sets aside in the middle of
 // a colour holds the colour's end. Which is faster is a property of the machine at the time,
 // not of the run, so it is measured as the run goes. The sweeps compute the same bits at any
 // thread count (solvers/staged_tasks.hpp), so the choice changes when a run finishes, never what it

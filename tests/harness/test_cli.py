@@ -233,7 +233,7 @@ class CliTest(unittest.TestCase):
         self.assertEqual(header[0].split(), ["name", "dim", "units", "doc"])
 
     def test_a_collapse_is_complete_with_warnings_in_the_run_line_and_the_summary(self):
-        # Issue 16's example: a stable neo-Hookean bar (E = 2e5 Pa, nu = 0.45), xpbd, 10 iterations.
+        # A soft stable neo-Hookean bar (E = 2e5 Pa, nu = 0.45), xpbd, 10 iterations.
         out = os.path.join(self.dir, "bar.h5")
         r = pbdbench("run", "cantilever_fem", "--set", "scene.youngs_modulus=2e5", "--set", "scene.poisson_ratio=0.45",
                      "--set", "solver.substeps=1", "--set", "solver.iterations=10", "--set", "time.duration=0.5",

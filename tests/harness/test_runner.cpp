@@ -440,7 +440,7 @@ TEST(Runner, APlanBeyondTheMachineIsRefusedBeforeAnyFileUnlessForced) {
   EXPECT_FALSE(fs::exists(out));
 }
 
-// Issue 16's example: a stable neo-Hookean bar (E = 2e5 Pa, nu = 0.45) under xpbd with one step
+// A soft stable neo-Hookean bar (E = 2e5 Pa, nu = 0.45) under xpbd with one step
 // of 10 iterations per frame collapses (a third of its volume in the first steps) and gains
 // energy without crossing any explosion limit: the run is complete and says so with warnings,
 // and its FEM elements count in the constraint error. The same bar with 40 substeps of one

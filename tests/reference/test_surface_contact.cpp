@@ -22,7 +22,7 @@
 //   it, released): with self-contact no vertex of the upper half crosses the lower half (the
 //   count of crossings, by the sign of its height over the lower layer, is 0); without it (the
 //   control) most of them cross.
-// - Edge through edge (written with edge-edge contact, issue 17): a triangle falling edge first
+// - Edge through edge (what edge-edge contact is for): a triangle falling edge first
 //   across a pinned triangle's top edge, their edges crossing at right angles, no vertex ever
 //   within 0.3 m of the other's triangle. With edge-edge contact, between bodies and (the two
 //   triangles one cloth body) with self-contact, the falling edge stays above the pinned one at

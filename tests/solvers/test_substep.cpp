@@ -68,8 +68,8 @@ SolverOptions hash_options(const std::string& name, ProjectionOrder order, int v
 
 TEST(Substep, DoublePrecisionBitsArePinned) {
   // The bits of 40 steps of the mixed scene in every order, recorded by this build's flags
-  // (Release, -ffp-contract=off, g++ 12) with the compiled projections (issue 15: their kernels
-  // and the acos-free bending changed the rounding of every order; the per-item reference path
+  // (Release, -ffp-contract=off, g++ 12) with the compiled projections (their kernels and the
+  // acos-free bending round differently from the per-item reference path, which
   // is compared with them in test_compiled_projection.cpp). The results do not depend on the
   // processor's vector width or the thread count. Variant 1 turns on pbd's stiffness correction
   // and velocity damping and unaveraged, relaxed Jacobi.
