@@ -100,9 +100,10 @@ def machine():
 
 def build(context):
     commit = context.get("git_commit", "?")
+    short = commit.split("+")[0][:10] + ("+" + commit.split("+", 1)[1] if "+" in commit else "")
     return "pbdbench %s, %s build, %s, `%s`, commit %s; Google Benchmark's library: %s build" % (
         context.get("pbdbench_version", "?"), context.get("build_type", "?"),
-        context.get("compiler", "?"), context.get("cxx_flags", "?").strip(), commit[:10],
+        context.get("compiler", "?"), context.get("cxx_flags", "?").strip(), short,
         context.get("library_build_type", "?"))
 
 
@@ -214,7 +215,7 @@ def lines_table(res):
         return []
     return (["**The lines the kernels are held to** (median [min, max] over the repetitions; a "
              "line is met when the median is on its side).", "",
-             "| line | case | measured | |", "|---|---|---|---|"] + rows)
+             "| line | case | measured | on this run |", "|---|---|---|---|"] + rows)
 
 
 def threads_table(res):
@@ -223,6 +224,7 @@ def threads_table(res):
            "timings favour.", ""]
     out.append("| case | t1 | t2 | t0 (default) | float, t1 |")
     out.append("|---|---|---|---|---|")
+    header = len(out)
     for scene in ("cloth64_distance", "cloth256_distance", "cloth256"):
         for solver in ("pbd", "xpbd"):
             base = f"solver/{scene}/{solver}/colored"
@@ -231,7 +233,7 @@ def threads_table(res):
             if all(c == "–" for c in cells):
                 continue
             out.append(f"| {solver}, {scene} | " + " | ".join(cells) + " |")
-    return out
+    return out if len(out) > header else []
 
 
 def harness_table(res):
@@ -241,6 +243,7 @@ def harness_table(res):
            "`overhead_pct`: all of the run beside the solver's steps, setup included).", ""]
     out.append("| run | logging_pct | overhead_pct | run s |")
     out.append("|---|---|---|---|")
+    header = len(out)
     for run in ("cloth64", "cloth64/inline", "cloth256", "cloth256/inline"):
         case = f"harness/{run}"
         if case not in res.runs:
@@ -258,6 +261,8 @@ def harness_table(res):
             if case in res.runs:
                 rows.append(f"| `{case}`: a frame deflated at level 1 | {res.cell(case, 'MB_per_s', digits=0)} MB/s, "
                             f"to {res.cell(case, 'ratio', digits=3)} of its size |")
+    if len(out) == header:
+        out = out[:header - 3] if rows else []
     if rows:
         out += ["", "| case | measured (median) |", "|---|---|"] + rows
     return out
@@ -265,7 +270,7 @@ def harness_table(res):
 
 def block(res, command):
     lines = [BEGIN, ""]
-    lines.append(f"- Command: `{command}`")
+    lines.append(f"- Command: {command}")
     lines.append(f"- Machine: {machine_of(res.context)}")
     lines.append(f"- Build: {build(res.context)}")
     lines.append(f"- Repetitions: {res.reps} a case, interleaved at random; {len(res.runs)} cases.")
@@ -316,7 +321,7 @@ def main(argv):
         with open(args.from_json) as f:
             data = json.load(f)
         command = data.get("context", {}).get("perf_report_command") or \
-            f"scripts/perf_report.py --from-json {args.from_json}"
+            f"`/usr/bin/python3 scripts/perf_report.py --from-json {args.from_json}`"
     else:
         if not os.access(args.binary, os.X_OK):
             print(f"perf_report.py: {args.binary}: not an executable benchmark program "
@@ -331,15 +336,16 @@ def main(argv):
             shown += ["--reps", str(args.reps)]
         if args.min_time != DEFAULT_MIN_TIME:
             shown += ["--min-time", f"{args.min_time:g}"]
-        command = " ".join(shown) + ", which ran `PBDBENCH_SCENARIOS=scenarios " + \
+        command = "`/usr/bin/python3 " + " ".join(shown) + "`, which ran `PBDBENCH_SCENARIOS=scenarios " + \
             " ".join([args.binary] + [shlex.quote(o) for o in opts]) + "`"
         with tempfile.TemporaryDirectory() as tmp:
             out_json = os.path.join(tmp, "bench.json")
             env = dict(os.environ)
             env.setdefault("PBDBENCH_SCENARIOS", os.path.join(ROOT, "scenarios"))
             proc = subprocess.run([args.binary] + opts + [f"--benchmark_out={out_json}", "--benchmark_out_format=json"],
-                                  env=env, stdout=subprocess.DEVNULL)
+                                  env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             if proc.returncode != 0:
+                sys.stderr.write(proc.stderr)
                 print(f"perf_report.py: {args.binary} exited {proc.returncode}", file=sys.stderr)
                 return 1
             with open(out_json) as f:
