@@ -204,9 +204,9 @@ TEST(RefBeContact, CyclicPenetrationAgreesWithTheGlobalProjection) {
   // of penetration pbd leaves (the scene file's measurement). They are not expected to agree
   // to O(d_hat): the global projection's velocity pass (restitution 0 on its contacts) is not
   // backward Euler's v = (x - x_n) / h, and the jammed ring amplifies the difference. The
-  // comparison needs a barrier layer well below 1 mm: d_hat = 1e-4 m. (The first version of
-  // this test also ran the default d_hat = 1e-3 m: 2.2 mm apart, the layer and the radii's
-  // shrink below, 1.5 mm, pushed through the wedge; docs/reference.md reports both.)
+  // comparison needs a barrier layer well below 1 mm: d_hat = 1e-4 m. (At the default d_hat =
+  // 1e-3 m the centres end 2.2 mm apart: the layer and the radii's shrink below, 1.5 mm, pushed
+  // through the wedge; docs/reference.md reports both.)
   const Scene sc = config::build_scene(config::load("failures/cyclic_penetration"));
   SolverOptions go;
   go.name = "global-cholmod";
