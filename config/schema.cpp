@@ -42,6 +42,16 @@ struct Range {
   bool max_exclusive = false;
 };
 const Range kAny{};
+// The world a scenario may place things in. Coordinates within 1e6 m keep a double's spacing
+// below 1.2e-10 m, under every tolerance the harness uses (1e-8 m); speeds up to 1e6 m/s cross
+// that world in a second; rotations up to 1e6 degrees (2,778 turns) keep their sines exact to
+// 1e-11. A value beyond these is a typing error, and refusing it here names the key and line,
+// where the scene builder would only see the degenerate triangles or NaN positions it makes.
+const Range kCoordinate{-1e6, 1e6, false, false};      // m
+const Range kSpeed{-1e6, 1e6, false, false};           // m/s
+const Range kAngle{-1e6, 1e6, false, false};           // deg
+const Range kAngularSpeed{-1e6, 1e6, false, false};    // rad/s
+const Range kScale{0, 1e6, true, false};               // a uniform scale factor, 1
 Range at_least(double v) { return {v, 1e308, false, false}; }
 Range above(double v) { return {v, 1e308, true, false}; }
 Range within(double lo, double hi) { return {lo, hi, false, false}; }
@@ -154,9 +164,9 @@ std::vector<KeySpec> motion_keys(const std::string& prefix, const std::string& w
            "scripted motion of " + what +
                ": static, linear (velocity), oscillate (amplitude, frequency), circle (axis, "
                "radius, frequency)"),
-      vec3(prefix + "_velocity", m.velocity, "m/s", kAny,
+      vec3(prefix + "_velocity", m.velocity, "m/s", kSpeed,
            "velocity of a linear motion: offset = velocity (t - start) until stop"),
-      vec3(prefix + "_amplitude", m.amplitude, "m", kAny,
+      vec3(prefix + "_amplitude", m.amplitude, "m", kCoordinate,
            "amplitude of an oscillation: offset = amplitude sin(2 pi frequency (t - start))"),
       vec3(prefix + "_axis", m.axis, "1", kAny,
            "axis of a circular motion (non-zero when the motion is circle; normalised)"),
@@ -217,8 +227,8 @@ SceneKindInfo particle_kind() {
   return {"particle",
           "one free particle in flight (closed-form reference: ballistic motion)",
           {
-              vec3("scene.position", Vec3::Zero(), "m", kAny, "initial position"),
-              vec3("scene.velocity", Vec3::Zero(), "m/s", kAny, "initial velocity"),
+              vec3("scene.position", Vec3::Zero(), "m", kCoordinate, "initial position"),
+              vec3("scene.velocity", Vec3::Zero(), "m/s", kSpeed, "initial velocity"),
               real("scene.mass", 1.0, "kg", above(0), "mass of the particle"),
               real("scene.radius", 0.01, "m", above(0), "radius of the particle (contacts only)"),
           }};
@@ -226,7 +236,7 @@ SceneKindInfo particle_kind() {
 
 SceneKindInfo spring_kind() {
   std::vector<KeySpec> keys = {
-      vec3("scene.anchor", Vec3::Zero(), "m", kAny, "position of the fixed anchor particle"),
+      vec3("scene.anchor", Vec3::Zero(), "m", kCoordinate, "position of the fixed anchor particle"),
       vec3("scene.direction", Vec3::UnitX(), "1", kAny,
            "direction from the anchor to the particle (non-zero; normalised)"),
       real("scene.rest_length", 1.0, "m", above(0), "rest length of the link"),
@@ -244,7 +254,7 @@ SceneKindInfo spring_kind() {
 
 SceneKindInfo pendulum_kind() {
   std::vector<KeySpec> keys = {
-      vec3("scene.pivot", Vec3::Zero(), "m", kAny, "position of the fixed pivot particle"),
+      vec3("scene.pivot", Vec3::Zero(), "m", kCoordinate, "position of the fixed pivot particle"),
       real("scene.length", 1.0, "m", above(0), "length of the rod"),
       real("scene.angle_deg", 30.0, "deg", within(-179.9, 179.9),
            "release angle from the downward vertical (the direction of gravity), in the plane of "
@@ -260,7 +270,7 @@ SceneKindInfo pendulum_kind() {
 SceneKindInfo chain_kind() {
   const ChainSpec c;
   std::vector<KeySpec> keys = {
-      vec3("scene.top", c.top, "m", kAny, "position of the first (top) particle"),
+      vec3("scene.top", c.top, "m", kCoordinate, "position of the first (top) particle"),
       integer("scene.links", c.links, within(1, 100000), "number of links (particles = links + 1)"),
       real("scene.link_length", c.link_length, "m", above(0), "rest length of each link"),
       real("scene.mass", c.mass, "kg", above(0), "mass of each particle"),
@@ -289,7 +299,7 @@ SceneKindInfo cloth_kind() {
            "particles along the two axes of the plane [nx, ny]; particle (i, j) has index j nx + i"),
       floats("scene.size", {c.width, c.height}, 2, "m", above(0),
              "width and height [w, h] along the two axes of the plane"),
-      vec3("scene.origin", c.origin, "m", kAny, "position of particle (0, 0)"),
+      vec3("scene.origin", c.origin, "m", kCoordinate, "position of particle (0, 0)"),
       text("scene.plane", c.plane, {"xz", "xy"},
            "xz: horizontal, rows along +z; xy: vertical, row j = 0 on top, rows going down"),
       real("scene.mass", c.mass, "kg", above(0), "total mass, spread evenly over the particles"),
@@ -312,7 +322,7 @@ SceneKindInfo cloth_kind() {
                       "along each grid line"));
   append(keys, group_keys("scene.bending", "bending constraints (rad^2/J when dihedral, m/N when distance)",
                           "rad^2/J or m/N", ConstraintParams{1.0, 1.0, 0.0}));
-  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kAny,
+  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kSpeed,
                       "initial velocity of the free particles"));
   append(keys, motion_keys("scene.pin_motion", "the pinned particles"));
   return {"cloth", "a rectangular cloth of nx x ny particles with stretch, shear and bending",
@@ -325,7 +335,7 @@ SceneKindInfo tet_block_kind() {
       ints("scene.cells", {t.cells[0], t.cells[1], t.cells[2]}, 3, within(1, 1000),
            "hexahedral cells along x, y and z, each split into tetrahedra"),
       vec3("scene.size", t.size, "m", above(0), "extent of the block along x, y and z"),
-      vec3("scene.origin", t.origin, "m", kAny, "the block's minimum corner"),
+      vec3("scene.origin", t.origin, "m", kCoordinate, "the block's minimum corner"),
       real("scene.density", t.density, "kg/m^3", above(0), "density; each tet's mass is lumped to its vertices"),
       real("scene.radius", t.radius, "m", above(0), "radius of each particle (contacts only)"),
       integer("scene.tets_per_cell", t.tets_per_cell, within(5, 6),
@@ -340,7 +350,7 @@ SceneKindInfo tet_block_kind() {
   append(keys, group_keys("scene.edge", "edge constraints", "m/N", ConstraintParams{1e-6, 1.0, 0.0}));
   append(keys, group_keys("scene.volume", "volume constraints", "m^5/N",
                           ConstraintParams{1e-10, 1.0, 0.0}));
-  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kAny,
+  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kSpeed,
                       "initial velocity of the free particles"));
   append(keys, motion_keys("scene.pin_motion", "the pinned face"));
   return {"tet_block",
@@ -356,7 +366,7 @@ SceneKindInfo tri_block_kind() {
            "diagonal that alternates from cell to cell"),
       floats("scene.size", {t.size[0], t.size[1]}, 2, "m", above(0),
              "extent of the rectangle along x and y [w, h]; it lies in the xy plane"),
-      vec3("scene.origin", t.origin, "m", kAny, "the rectangle's minimum corner"),
+      vec3("scene.origin", t.origin, "m", kCoordinate, "the rectangle's minimum corner"),
       real("scene.density", t.density, "kg/m^3", above(0),
            "density; each triangle's mass (density x thickness x area) is lumped to its vertices"),
       real("scene.thickness", t.thickness, "m", above(0),
@@ -373,7 +383,7 @@ SceneKindInfo tri_block_kind() {
   };
   append(keys, modulus_keys(1e5));
   append(keys, group_keys("scene.edge", "edge constraints", "m/N", ConstraintParams{1e-6, 1.0, 0.0}));
-  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kAny,
+  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kSpeed,
                       "initial velocity of the free particles"));
   append(keys, motion_keys("scene.pin_motion", "the pinned edge"));
   return {"tri_block",
@@ -397,7 +407,7 @@ SceneKindInfo spheres_kind() {
               real("scene.radius", p.radius, "m", above(0), "radius of each sphere"),
               real("scene.gap", p.gap, "1", at_least(0),
                    "space left between neighbours, as a fraction of the diameter"),
-              vec3("scene.origin", p.origin, "m", kAny,
+              vec3("scene.origin", p.origin, "m", kCoordinate,
                    "centre of the first sphere (minimum corner; grid) or of the circle (ring)"),
               real("scene.ring_radius", p.ring_radius, "m", above(0),
                    "ring: radius of the circle of centres (centre distance of neighbours "
@@ -413,7 +423,7 @@ SceneKindInfo spheres_kind() {
                    "restitution e of sphere-sphere contacts"),
               real("scene.friction", 0.0, "1", at_least(0),
                    "Coulomb friction mu of sphere-sphere contacts"),
-              vec3("scene.velocity", Vec3::Zero(), "m/s", kAny, "initial velocity of every sphere"),
+              vec3("scene.velocity", Vec3::Zero(), "m/s", kSpeed, "initial velocity of every sphere"),
           }};
 }
 
@@ -426,8 +436,8 @@ SceneKindInfo mesh_kind() {
            ".ele (tetrahedra) or .msh (tetrahedra)"),
       text("scene.format", "auto", {"auto", "obj", "tetgen", "gmsh"},
            "file format; auto: from the extension (.obj, .node/.ele, .msh)"),
-      real("scene.scale", 1.0, "1", above(0), "uniform scale applied to the vertices, before translate"),
-      vec3("scene.translate", Vec3::Zero(), "m", kAny, "offset added to the scaled vertices"),
+      real("scene.scale", 1.0, "1", kScale, "uniform scale applied to the vertices, before translate"),
+      vec3("scene.translate", Vec3::Zero(), "m", kCoordinate, "offset added to the scaled vertices"),
       real("scene.mass", s.mass, "kg", above(0), "total mass of a surface mesh, spread evenly"),
       real("scene.density", t.density, "kg/m^3", above(0), "density of a tet mesh, lumped to the vertices"),
       real("scene.radius", s.radius, "m", above(0), "radius of each particle (contacts only)"),
@@ -448,7 +458,7 @@ SceneKindInfo mesh_kind() {
                           ConstraintParams{1e-10, 1.0, 0.0}));
   keys.push_back(ints("scene.pin_indices", {}, 0, at_least(0),
                       "indices of the vertices to pin (each below the vertex count)"));
-  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kAny,
+  keys.push_back(vec3("scene.velocity", Vec3::Zero(), "m/s", kSpeed,
                       "initial velocity of the free particles"));
   append(keys, motion_keys("scene.pin_motion", "the pinned particles"));
   return {"mesh", "a surface (.obj) or tetrahedral (.node/.ele, .msh) mesh read from a file",
@@ -576,10 +586,10 @@ const ColliderTable& collider_table() {
              "plane normal, pointing into the allowed side (non-zero; stored as given, not "
              "normalised)"),
         planes);
-    add(real("collider.offset", plane.offset, "m", kAny,
+    add(real("collider.offset", plane.offset, "m", kCoordinate,
              "the plane is normal . x + offset = 0 (metres for a unit normal)"),
         planes);
-    add(vec3("collider.center", sphere.center, "m", kAny, "centre of the sphere at t = 0"), spheres);
+    add(vec3("collider.center", sphere.center, "m", kCoordinate, "centre of the sphere at t = 0"), spheres);
     add(real("collider.radius", sphere.radius, "m", above(0), "radius of the sphere"), spheres);
     add(text("collider.side", "outside", {"outside", "inside", "bowl"},
              "particles stay outside, inside, or inside the lower half (bowl: open above the centre)"),
@@ -588,14 +598,14 @@ const ColliderTable& collider_table() {
              "OBJ file of the mesh, relative to the scenario file's folder (polygons fan-"
              "triangulated; docs/scenarios.md, mesh colliders)"),
         meshes);
-    add(vec3("collider.position", Vec3::Zero(), "m", kAny,
+    add(vec3("collider.position", Vec3::Zero(), "m", kCoordinate,
              "translation of the mesh: x = position + R (scale x_file)"),
         meshes);
-    add(vec3("collider.rotation", Vec3::Zero(), "deg", kAny,
+    add(vec3("collider.rotation", Vec3::Zero(), "deg", kAngle,
              "rotation R of the mesh: a rotation vector (axis times angle in degrees) about the "
              "file's origin"),
         meshes);
-    add(real("collider.scale", 1.0, "1", above(0), "uniform scale of the mesh's vertices"), meshes);
+    add(real("collider.scale", 1.0, "1", kScale, "uniform scale of the mesh's vertices"), meshes);
     add(real("collider.restitution", plane.restitution, "1", within(0, 1),
              "restitution e of contacts with this collider"),
         all);
@@ -622,13 +632,13 @@ const std::vector<KeySpec>& body_placement_keys() {
   static const std::vector<KeySpec> keys = {
       text("body.kind", "tet_block", body_kinds(),
            "the body's scene kind; its keys are that kind's scene keys, written without 'scene.'"),
-      vec3("body.position", Vec3::Zero(), "m", kAny,
+      vec3("body.position", Vec3::Zero(), "m", kCoordinate,
            "translation added to every particle after the rotation"),
-      vec3("body.rotation", Vec3::Zero(), "deg", kAny,
+      vec3("body.rotation", Vec3::Zero(), "deg", kAngle,
            "rotation vector (axis times angle in degrees) about the body's centroid"),
-      vec3("body.velocity", Vec3::Zero(), "m/s", kAny,
+      vec3("body.velocity", Vec3::Zero(), "m/s", kSpeed,
            "initial velocity of every dynamic particle (added to the kind's own)"),
-      vec3("body.angular_velocity", Vec3::Zero(), "rad/s", kAny,
+      vec3("body.angular_velocity", Vec3::Zero(), "rad/s", kAngularSpeed,
            "initial angular velocity about the body's centroid (after the placement)"),
   };
   return keys;

@@ -410,6 +410,28 @@ TEST(LoadErrors, PhysicalValuesBeyondDoublePrecisionNameTheirKey) {
   EXPECT_NO_THROW((void)load_text("gravity = [1e-300, -9.81, 0.0]\n[scene]\nkind = \"particle\"\n", "a.toml"));
 }
 
+TEST(LoadErrors, PlacementsBeyondTheWorldNameTheirKey) {
+  // Coordinates, speeds, rotations and scales have bounds (1e6 in their units): beyond them the
+  // builder would only meet the degenerate triangles or NaN positions that they make.
+  const ConfigError position = load_error(
+      "[scene]\nkind = \"chain\"\n[[body]]\nkind = \"tet_block\"\nposition = [1e200, 0.0, 0.0]\n");
+  EXPECT_EQ(position.key(), "body.0.position");
+  EXPECT_EQ(position.source().line, 5);
+  EXPECT_NE(std::string(position.what()).find("above the maximum 1000000 m"), std::string::npos) << position.what();
+  const ConfigError rotation = load_error(
+      "[scene]\nkind = \"chain\"\n[[body]]\nkind = \"tet_block\"\nrotation = [0.0, -1e308, 0.0]\n");
+  EXPECT_EQ(rotation.key(), "body.0.rotation");
+  const ConfigError scale = load_error(
+      "[scene]\nkind = \"chain\"\n[[collider]]\ntype = \"mesh\"\nfile = \"x.obj\"\nscale = 1e300\n");
+  EXPECT_EQ(scale.key(), "collider.0.scale");
+  EXPECT_EQ(scale.source().line, 6);
+  const ConfigError speed = load_error("[scene]\nkind = \"particle\"\nvelocity = [2e6, 0.0, 0.0]\n");
+  EXPECT_EQ(speed.key(), "scene.velocity");
+  // The bounds themselves are accepted.
+  EXPECT_NO_THROW((void)load_text("[scene]\nkind = \"particle\"\nposition = [1e6, -1e6, 0.0]\n"
+                                  "velocity = [0.0, -1e6, 0.0]\n", "a.toml"));
+}
+
 TEST(LoadErrors, ACollidersIndexThatOverflowsIsNamed) {
   const ConfigError e = load_error("[scene]\nkind = \"chain\"\n[[collider]]\ntype = \"plane\"\n", "bad.toml",
                                    testing::sets({"collider.99999999999999999999.radius=1"}));
