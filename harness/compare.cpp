@@ -134,9 +134,16 @@ CompareRun read_compare_run(const fs::path& path) {
   parts.frames = RunFileParts::Frames::All;
   parts.velocities = false;
   parts.model = true;
-  RunFileData data = read_run_file(path, parts);  // throws naming the path
+  // A file that is not a run file is bad input (exit 2), named as such, not a failure to read.
+  RunFileData data;
+  try {
+    data = read_run_file(path, parts);
+  } catch (const std::exception& e) {
+    throw CompareInputError(fmt::format("{} is not a pbdbench run file that compare can read: {}",
+                                        path.string(), e.what()));
+  }
   if (data.model.rest_positions.rows() == 0 && data.model.inv_mass.empty())
-    throw std::runtime_error("run file " + path.string() + ": no /model/rest_positions");
+    throw CompareInputError("run file " + path.string() + ": no /model/rest_positions");
   CompareRun r;
   r.path = path;
   r.attributes = std::move(data.attributes);
@@ -372,9 +379,12 @@ std::string compare_summary(const CompareResult& r) {
   }
   if (r.support_force.present) {
     const VectorObservable& v = r.support_force;
-    out += fmt::format("  support force: run {} N, reference {} N, gap {} N ({} relative)\n",
-                       vec(v.run, last), vec(v.reference, last), num(v.gap.back()),
-                       num(v.relative_gap.back()));
+    // The relative gap only where it has a value: a reference support force of zero (no pins)
+    // leaves none to divide by.
+    const double relative = v.relative_gap.back();
+    out += fmt::format("  support force: run {} N, reference {} N, gap {} N{}\n", vec(v.run, last),
+                       vec(v.reference, last), num(v.gap.back()),
+                       std::isfinite(relative) ? " (" + num(relative) + " relative)" : "");
     for (const auto& [who, p] : {std::pair{"run", &v.run}, std::pair{"reference", &v.reference}})
       if (!any_finite(*p))
         out += fmt::format("    (NaN throughout in the {}: its solver keeps no multipliers, or an "
