@@ -485,9 +485,9 @@ int main(int argc, char** argv) {
   converge->add_option("--set", sets, "Override a key by its dotted path (repeatable)");
   converge->add_option("--warmup-steps", warmup_steps,
                        "Steps of the scene's own solver before the measured step (default 0)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, 100000000));
   converge->add_option("--max-sweeps", max_sweeps, "The largest xpbd sweep count (default 1000)")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(1, 1000000));
   std::vector<std::string> methods;
   converge->add_option("--methods", methods,
                        "Measure only these methods (comma-separated keys; default all: "
@@ -515,7 +515,7 @@ int main(int argc, char** argv) {
     sub->add_flag("--force", claims_cmd.force, "Run again even when current run files exist");
     sub->add_option("--jobs,-j", claims_cmd.jobs,
                     "Runs at once, in child processes (default: in this process; a shard: the cores it may use)")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::Range(1, 4096));
     app::add_array_options(sub, experiment_array);
     sub->add_option("--record", claims_cmd.record, "Write every part's verdict to this file");
     sub->add_option("--expect", claims_cmd.expect, "Compare the verdicts with this record; exit 5 when one differs");
@@ -562,7 +562,7 @@ int main(int argc, char** argv) {
   regress_sub->add_flag("--no-plot", regress_no_plot, "Do not draw regress.png");
   regress_sub->add_option("--jobs,-j", regress_cmd.jobs,
                           "Runs at once, in child processes (default: in this process; a shard: the cores it may use)")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(1, 4096));
   app::ArrayOptions regress_array;
   app::add_array_options(regress_sub, regress_array);
 

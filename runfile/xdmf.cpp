@@ -108,22 +108,30 @@ std::array<int, K> sorted(std::array<int, K> a) {
   return a;
 }
 
-// The cells of one topology and which constraints sit on each.
+// The cells of one topology, each once whatever the order of its particles.
 template <size_t K>
 struct Cells {
   std::vector<std::array<int, K>> cells;
   std::map<std::array<int, K>, int> index;  // sorted particles -> cell
-  std::vector<std::vector<int>> constraints;  // per cell
   void add(const std::array<int, K>& c) {
     if (index.emplace(sorted(c), static_cast<int>(cells.size())).second) cells.push_back(c);
   }
-  void attach(const std::array<int, K>& particles, int constraint) {
-    auto it = index.find(sorted(particles));
-    if (it == index.end()) return;
-    if (constraints.size() < cells.size()) constraints.resize(cells.size());
-    constraints[static_cast<size_t>(it->second)].push_back(constraint);
-  }
 };
+
+// A constraint's particles (an FEM constraint's are its element's), sorted; empty past arity 4.
+std::vector<int> constraint_particles(const Model& model, const Constraint& c) {
+  std::vector<int> p;
+  int count = arity(c.kind);
+  if (is_fem_kind(c.kind) && c.element >= 0 && c.element < static_cast<int>(model.elements.size())) {
+    const FemElement& e = model.elements[static_cast<size_t>(c.element)];
+    count = e.vertices;
+    for (int k = 0; k < count && k < 4; ++k) p.push_back(e.particles[static_cast<size_t>(k)]);
+  } else {
+    for (int k = 0; k < count && k < 4; ++k) p.push_back(c.particles[static_cast<size_t>(k)]);
+  }
+  std::sort(p.begin(), p.end());
+  return p;
+}
 
 void write_dataset(H5::H5File& f, const std::string& name, const std::vector<hsize_t>& dims,
                    const double* data) {
@@ -151,28 +159,7 @@ std::string dims_text(const std::vector<hsize_t>& d) {
   return s;
 }
 
-// A DataItem reading frame f of a (F, rest...) dataset.
-std::string frame_item(const std::string& file_and_path, hsize_t f, hsize_t frames,
-                       const std::vector<hsize_t>& rest) {
-  std::vector<hsize_t> full = {frames}, one = {1};
-  full.insert(full.end(), rest.begin(), rest.end());
-  one.insert(one.end(), rest.begin(), rest.end());
-  const size_t rank = full.size();
-  std::string start = std::to_string(f), stride = "1", count = "1";
-  for (size_t k = 1; k < rank; ++k) {
-    start += " 0";
-    stride += " 1";
-    count += ' ';
-    count += std::to_string(full[k]);
-  }
-  return fmt::format(
-      "<DataItem ItemType=\"HyperSlab\" Dimensions=\"{}\" Type=\"HyperSlab\">"
-      "<DataItem Dimensions=\"3 {}\" Format=\"XML\">{} {} {}</DataItem>"
-      "<DataItem Dimensions=\"{}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}</DataItem>"
-      "</DataItem>",
-      dims_text(rest), rank, start, stride, count, dims_text(full), file_and_path);
-}
-
+// A DataItem reading a whole dataset (XDMF readers such as meshio's take no hyperslab).
 std::string whole_item(const std::string& file_and_path, const std::vector<hsize_t>& dims, bool ints = false) {
   return fmt::format("<DataItem Dimensions=\"{}\" NumberType=\"{}\" Precision=\"{}\" Format=\"HDF\">{}</DataItem>",
                      dims_text(dims), ints ? "Int" : "Float", ints ? 4 : 8, file_and_path);
@@ -232,7 +219,7 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   RunFileParts parts;
   parts.series = false;
   parts.frames = RunFileParts::Frames::All;
-  parts.velocities = false;  // the XDMF reads them from the run file itself
+  parts.velocities = true;  // copied per frame: a reader of the XDMF needs no hyperslab
   const RunFileData run_data = read_run_file(run_file, parts);
   const std::vector<double>& times = run_data.frame_time;
   if (run_data.frames.size() != times.size()) fail(run_file, "has no frames");
@@ -240,11 +227,11 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
     if (frame.rows() != n)
       fail(run_file, fmt::format("frames of {} particles, the scene has {}: not this scene's run file",
                                  frame.rows(), n));
-  const bool velocities = run_data.has_velocities;
+  const bool velocities = run_data.has_velocities && run_data.velocities.size() == times.size();
   const hsize_t F = times.size();
   out.frames = static_cast<long>(F);
 
-  // Topology and the constraints on each cell.
+  // Topology.
   Cells<2> edges;
   Cells<3> tris;
   Cells<4> tets;
@@ -253,69 +240,116 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
     if (c.kind == ConstraintKind::Distance) edges.add({c.particles[0], c.particles[1]});
   for (const auto& t : model.triangles) tris.add(t);
   for (const auto& t : model.tets) tets.add(t);
-  edges.constraints.resize(edges.cells.size());
-  tris.constraints.resize(tris.cells.size());
-  tets.constraints.resize(tets.cells.size());
-  for (size_t j = 0; j < model.constraints.size(); ++j) {
-    const Constraint& c = model.constraints[j];
-    const int id = static_cast<int>(j);
-    std::array<int, 4> p = c.particles;
-    int count = arity(c.kind);
-    if (is_fem_kind(c.kind) && c.element >= 0 && c.element < static_cast<int>(model.elements.size())) {
-      const FemElement& e = model.elements[static_cast<size_t>(c.element)];
-      count = e.vertices;
-      for (int k = 0; k < 4; ++k) p[static_cast<size_t>(k)] = k < count ? e.particles[static_cast<size_t>(k)] : -1;
+  const size_t E = edges.cells.size(), T = tris.cells.size(), K = tets.cells.size();
+  out.edges = static_cast<long>(E);
+  out.triangles = static_cast<long>(T);
+  out.tets = static_cast<long>(K);
+
+  // What each cell's constraint_error is made of: the constraints whose particles all belong to
+  // the cell (a cloth triangle: the distance constraints of its edges; a tet: its volume or FEM
+  // constraint and those of its edges and faces); for a cell that holds no whole constraint (a
+  // tet mesh's surface triangle), the constraints that share a particle with it. A cell that no
+  // constraint touches has error 0: nothing on it can be violated. The field so has a value on
+  // every cell it colours, NaN only where a constraint's own error is NaN (a run that exploded).
+  // Cells are numbered tets, then triangles, then edges: the order of the mixed topology below.
+  const size_t C = K + T + E;
+  std::vector<std::vector<int>> cell_particles(C);
+  for (size_t t = 0; t < K; ++t) cell_particles[t].assign(tets.cells[t].begin(), tets.cells[t].end());
+  for (size_t t = 0; t < T; ++t) cell_particles[K + t].assign(tris.cells[t].begin(), tris.cells[t].end());
+  for (size_t e = 0; e < E; ++e) cell_particles[K + T + e].assign(edges.cells[e].begin(), edges.cells[e].end());
+  std::map<std::vector<int>, std::vector<int>> holders;  // sorted particle subset -> cells holding it
+  for (size_t c = 0; c < C; ++c) {
+    std::vector<int> s = cell_particles[c];
+    std::sort(s.begin(), s.end());
+    const unsigned size = static_cast<unsigned>(s.size());
+    for (unsigned mask = 1; mask < (1u << size); ++mask) {
+      std::vector<int> sub;
+      for (unsigned k = 0; k < size; ++k)
+        if (mask & (1u << k)) sub.push_back(s[k]);
+      if (sub.size() >= 2) holders[sub].push_back(static_cast<int>(c));
     }
-    if (c.kind == ConstraintKind::Distance) edges.attach({p[0], p[1]}, id);
-    else if (count == 4 && c.kind != ConstraintKind::Bending) tets.attach(p, id);
-    else if (count == 3) tris.attach({p[0], p[1], p[2]}, id);
   }
-  out.edges = static_cast<long>(edges.cells.size());
-  out.triangles = static_cast<long>(tris.cells.size());
-  out.tets = static_cast<long>(tets.cells.size());
+  std::vector<std::vector<int>> whole(C);                   // per cell: the constraints inside it
+  std::vector<std::vector<int>> on_particle(static_cast<size_t>(n));  // per particle: its constraints
+  for (size_t j = 0; j < model.constraints.size(); ++j) {
+    const std::vector<int> p = constraint_particles(model, model.constraints[j]);
+    for (int i : p)
+      if (i >= 0 && i < n) on_particle[static_cast<size_t>(i)].push_back(static_cast<int>(j));
+    if (p.size() < 2) continue;
+    auto it = holders.find(p);
+    if (it != holders.end())
+      for (int c : it->second) whole[static_cast<size_t>(c)].push_back(static_cast<int>(j));
+  }
+  holders.clear();
 
   // Fields.
   const hsize_t N = static_cast<hsize_t>(n);
-  std::vector<double> displacement(F * N * 3), inv_mass(model.inv_mass), pinned(N);
+  std::vector<double> inv_mass(model.inv_mass), pinned(N);
   for (int i = 0; i < n; ++i) pinned[static_cast<size_t>(i)] = model.inv_mass[static_cast<size_t>(i)] == 0.0 ? 1.0 : 0.0;
-  const size_t E = edges.cells.size(), T = tris.cells.size(), K = tets.cells.size();
   std::vector<double> strain(F * E), edge_err(F * E), area(F * T), tri_err(F * T), volume(F * K), tet_err(F * K);
+  std::vector<double> change(F * C), cell_err(F * C);  // per frame, all cells in the mixed order
   auto tri_area = [](const Vec3& a, const Vec3& b, const Vec3& c) { return 0.5 * (b - a).cross(c - a).norm(); };
+  std::vector<double> err(model.constraints.size()), particle_err(static_cast<size_t>(n));
   for (hsize_t f = 0; f < F; ++f) {
     const Points& x = run_data.frames[f];
-    for (int i = 0; i < n; ++i)
-      for (int k = 0; k < 3; ++k)
-        displacement[(f * N + static_cast<hsize_t>(i)) * 3 + static_cast<hsize_t>(k)] = x(i, k) - model.rest_positions(i, k);
+    for (size_t j = 0; j < err.size(); ++j) err[j] = constraint_error(model, model.constraints[j], x);
     auto worst = [&](const std::vector<int>& cs) {
-      if (cs.empty()) return kNaN;
       double w = 0.0;
       for (int j : cs) {
-        const double e = constraint_error(model, model.constraints[static_cast<size_t>(j)], x);
+        const double e = err[static_cast<size_t>(j)];
         if (std::isnan(e)) return kNaN;
         w = std::max(w, e);
       }
       return w;
     };
+    for (int i = 0; i < n; ++i) particle_err[static_cast<size_t>(i)] = worst(on_particle[static_cast<size_t>(i)]);
+    for (size_t c = 0; c < C; ++c) {
+      double w = 0.0;
+      if (!whole[c].empty()) {
+        w = worst(whole[c]);
+      } else {
+        for (int i : cell_particles[c]) {
+          const double e = particle_err[static_cast<size_t>(i)];
+          if (std::isnan(e)) {
+            w = kNaN;
+            break;
+          }
+          w = std::max(w, e);
+        }
+      }
+      cell_err[f * C + c] = w;
+    }
     const Points& X = model.rest_positions;
-    for (size_t e = 0; e < E; ++e) {
-      const auto [a, b] = edges.cells[e];
-      const double l0 = (X.row(a) - X.row(b)).norm();
-      strain[f * E + e] = l0 > 0.0 ? (x.row(a) - x.row(b)).norm() / l0 - 1.0 : kNaN;
-      edge_err[f * E + e] = worst(edges.constraints[e]);
+    for (size_t t = 0; t < K; ++t) {
+      const auto [a, b, c, d] = tets.cells[t];
+      const double v0 = tet_signed_volume(X.row(a), X.row(b), X.row(c), X.row(d));
+      volume[f * K + t] = v0 != 0.0 ? tet_signed_volume(x.row(a), x.row(b), x.row(c), x.row(d)) / v0 - 1.0 : kNaN;
+      tet_err[f * K + t] = cell_err[f * C + t];
+      change[f * C + t] = volume[f * K + t];
     }
     for (size_t t = 0; t < T; ++t) {
       const auto [a, b, c] = tris.cells[t];
       const double a0 = tri_area(X.row(a), X.row(b), X.row(c));
       area[f * T + t] = a0 > 0.0 ? tri_area(x.row(a), x.row(b), x.row(c)) / a0 - 1.0 : kNaN;
-      tri_err[f * T + t] = worst(tris.constraints[t]);
+      tri_err[f * T + t] = cell_err[f * C + K + t];
+      change[f * C + K + t] = area[f * T + t];
     }
-    for (size_t t = 0; t < K; ++t) {
-      const auto [a, b, c, d] = tets.cells[t];
-      const double v0 = tet_signed_volume(X.row(a), X.row(b), X.row(c), X.row(d));
-      volume[f * K + t] = v0 != 0.0 ? tet_signed_volume(x.row(a), x.row(b), x.row(c), x.row(d)) / v0 - 1.0 : kNaN;
-      tet_err[f * K + t] = worst(tets.constraints[t]);
+    for (size_t e = 0; e < E; ++e) {
+      const auto [a, b] = edges.cells[e];
+      const double l0 = (X.row(a) - X.row(b)).norm();
+      strain[f * E + e] = l0 > 0.0 ? (x.row(a) - x.row(b)).norm() / l0 - 1.0 : kNaN;
+      edge_err[f * E + e] = cell_err[f * C + K + T + e];
+      change[f * C + K + T + e] = strain[f * E + e];
     }
   }
+
+  // The mixed topology: per cell its XDMF type (6 tetrahedron, 4 triangle, 2 polyline with its
+  // node count) and particles.
+  std::vector<int> mixed;
+  mixed.reserve(5 * K + 4 * T + 4 * E);
+  for (const auto& t : tets.cells) mixed.insert(mixed.end(), {6, t[0], t[1], t[2], t[3]});
+  for (const auto& t : tris.cells) mixed.insert(mixed.end(), {4, t[0], t[1], t[2]});
+  for (const auto& e : edges.cells) mixed.insert(mixed.end(), {2, 2, e[0], e[1]});
 
   // Colliders: planes as quads around the body's rest centroid, 2 x its extent (at least 1 m).
   Vec3 centroid = Vec3::Zero();
@@ -342,81 +376,107 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   }
   out.collider_points = static_cast<long>(CP);
 
-  // The data file.
+  // The data file: the fields over all frames (F, cells) by cell type, as scripts/animate.py
+  // reads them, and what the XDMF reads, one whole dataset per frame under /frames/NNNNNN/.
+  const auto frame_group = [](hsize_t f) { return fmt::format("frames/{:06d}", f); };
   const std::string tmp = out.data.string() + ".tmp";
   try {
-    H5::H5File f(tmp, H5F_ACC_TRUNC);
+    H5::H5File h(tmp, H5F_ACC_TRUNC);
     {
       const H5::StrType st(H5::PredType::C_S1, H5T_VARIABLE);
-      H5::Attribute a = f.createAttribute("pbdbench_viz", st, H5::DataSpace(H5S_SCALAR));
+      H5::Attribute a = h.createAttribute("pbdbench_viz", st, H5::DataSpace(H5S_SCALAR));
       a.write(st, run_file.filename().string());
     }
-    write_dataset(f, "displacement", {F, N, 3}, displacement.data());
-    write_dataset(f, "inv_mass", {N}, inv_mass.data());
-    write_dataset(f, "pinned", {N}, pinned.data());
+    write_dataset(h, "inv_mass", {N}, inv_mass.data());
+    write_dataset(h, "pinned", {N}, pinned.data());
     std::vector<int> flat;
     for (auto& e : edges.cells) flat.insert(flat.end(), e.begin(), e.end());
-    write_ints(f, "edges", {E, 2}, flat.data());
+    write_ints(h, "edges", {E, 2}, flat.data());
     flat.clear();
     for (auto& t : tris.cells) flat.insert(flat.end(), t.begin(), t.end());
-    write_ints(f, "triangles", {T, 3}, flat.data());
+    write_ints(h, "triangles", {T, 3}, flat.data());
     flat.clear();
     for (auto& t : tets.cells) flat.insert(flat.end(), t.begin(), t.end());
-    write_ints(f, "tets", {K, 4}, flat.data());
-    write_dataset(f, "edge_strain", {F, E}, strain.data());
-    write_dataset(f, "edge_constraint_error", {F, E}, edge_err.data());
-    write_dataset(f, "triangle_area_change", {F, T}, area.data());
-    write_dataset(f, "triangle_constraint_error", {F, T}, tri_err.data());
-    write_dataset(f, "tet_volume_change", {F, K}, volume.data());
-    write_dataset(f, "tet_constraint_error", {F, K}, tet_err.data());
-    write_dataset(f, "collider_points", {collider_frames, CP, 3}, collider_points.data());
-    write_ints(f, "collider_triangles", {CT, 3}, collider_tris.data());
+    write_ints(h, "tets", {K, 4}, flat.data());
+    write_ints(h, "mixed", {static_cast<hsize_t>(mixed.size())}, mixed.data());
+    write_dataset(h, "edge_strain", {F, E}, strain.data());
+    write_dataset(h, "edge_constraint_error", {F, E}, edge_err.data());
+    write_dataset(h, "triangle_area_change", {F, T}, area.data());
+    write_dataset(h, "triangle_constraint_error", {F, T}, tri_err.data());
+    write_dataset(h, "tet_volume_change", {F, K}, volume.data());
+    write_dataset(h, "tet_constraint_error", {F, K}, tet_err.data());
+    write_dataset(h, "collider_points", {collider_frames, CP, 3}, collider_points.data());
+    write_ints(h, "collider_triangles", {CT, 3}, collider_tris.data());
+    h.createGroup("frames");
+    std::vector<double> buffer(N * 3);
+    for (hsize_t f = 0; f < F; ++f) {
+      const std::string g = frame_group(f);
+      h.createGroup(g);
+      const Points& x = run_data.frames[f];
+      for (int i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k) buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = x(i, k);
+      write_dataset(h, g + "/positions", {N, 3}, buffer.data());
+      for (int i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k)
+          buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = x(i, k) - model.rest_positions(i, k);
+      write_dataset(h, g + "/displacement", {N, 3}, buffer.data());
+      if (velocities) {
+        const Points& v = run_data.velocities[f];
+        for (int i = 0; i < n; ++i)
+          for (int k = 0; k < 3; ++k) buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = v(i, k);
+        write_dataset(h, g + "/velocity", {N, 3}, buffer.data());
+      }
+      write_dataset(h, g + "/change", {C}, change.data() + f * C);
+      write_dataset(h, g + "/constraint_error", {C}, cell_err.data() + f * C);
+      if (moving || f == 0)
+        write_dataset(h, g + "/collider_points", {CP, 3}, collider_points.data() + (moving ? f : 0) * CP * 3);
+    }
   } catch (const H5::Exception& e) {
     fail(out.data, "cannot write: " + e.getDetailMsg());
   }
   fs::rename(tmp, out.data);
 
-  // The XDMF.
-  const std::string run = run_file.filename().string();
+  // The XDMF (version 3: ParaView's readers, old and new, and meshio's TimeSeriesReader read it).
+  // Two temporal collections: the colliders, then the body, one uniform grid a frame with the
+  // mixed topology. meshio reads the last collection; every DataItem is a whole dataset.
   const std::string data = out.data.filename().string();
+  auto item = [&](const std::string& path, const std::vector<hsize_t>& dims, bool ints = false) {
+    return whole_item(data + ":/" + path, dims, ints);
+  };
   std::ostringstream x;
-  x << "<?xml version=\"1.0\" ?>\n" << kMarker << run << " -->\n"
-    << "<Xdmf Version=\"2.0\">\n<Domain>\n"
-    << "<Grid Name=\"run\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
-  for (hsize_t f = 0; f < F; ++f) {
-    x << fmt::format("<Grid Name=\"frame {}\" GridType=\"Collection\" CollectionType=\"Spatial\">\n<Time Value=\"{:.17g}\"/>\n", f, times[f]);
-    auto body = [&](const char* name, const char* topo, const char* extra, hsize_t cells, int per, const char* conn,
-                    const std::vector<std::pair<const char*, const char*>>& cell_fields) {
-      if (cells == 0) return;
-      x << fmt::format("<Grid Name=\"{}\" GridType=\"Uniform\">\n", name);
-      x << fmt::format("<Topology TopologyType=\"{}\" NumberOfElements=\"{}\"{}>{}</Topology>\n", topo, cells, extra,
-                       whole_item(data + ":/" + conn, {cells, static_cast<hsize_t>(per)}, true));
-      x << "<Geometry GeometryType=\"XYZ\">" << frame_item(run + ":/frames/positions", f, F, {N, 3}) << "</Geometry>\n";
-      if (velocities)
-        x << "<Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">"
-          << frame_item(run + ":/frames/velocities", f, F, {N, 3}) << "</Attribute>\n";
-      x << "<Attribute Name=\"displacement\" AttributeType=\"Vector\" Center=\"Node\">"
-        << frame_item(data + ":/displacement", f, F, {N, 3}) << "</Attribute>\n";
-      x << "<Attribute Name=\"inv_mass\" AttributeType=\"Scalar\" Center=\"Node\">" << whole_item(data + ":/inv_mass", {N})
-        << "</Attribute>\n";
-      x << "<Attribute Name=\"pinned\" AttributeType=\"Scalar\" Center=\"Node\">" << whole_item(data + ":/pinned", {N})
-        << "</Attribute>\n";
-      for (const auto& [field, path] : cell_fields)
-        x << fmt::format("<Attribute Name=\"{}\" AttributeType=\"Scalar\" Center=\"Cell\">", field)
-          << frame_item(data + ":/" + path, f, F, {cells}) << "</Attribute>\n";
-      x << "</Grid>\n";
-    };
-    body("tets", "Tetrahedron", "", K, 4, "tets", {{"volume_change", "tet_volume_change"}, {"constraint_error", "tet_constraint_error"}});
-    body("triangles", "Triangle", "", T, 3, "triangles",
-         {{"area_change", "triangle_area_change"}, {"constraint_error", "triangle_constraint_error"}});
-    body("edges", "Polyline", " NodesPerElement=\"2\"", E, 2, "edges",
-         {{"strain", "edge_strain"}, {"constraint_error", "edge_constraint_error"}});
-    if (CP > 0 && CT > 0) {
-      x << "<Grid Name=\"colliders\" GridType=\"Uniform\">\n";
+  x << "<?xml version=\"1.0\" ?>\n" << kMarker << run_file.filename().string() << " -->\n"
+    << "<Xdmf Version=\"3.0\">\n<Domain>\n";
+  if (CP > 0 && CT > 0) {
+    x << "<Grid Name=\"colliders\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    for (hsize_t f = 0; f < F; ++f) {
+      x << fmt::format("<Grid Name=\"colliders {}\" GridType=\"Uniform\">\n<Time Value=\"{:.17g}\"/>\n", f, times[f]);
       x << fmt::format("<Topology TopologyType=\"Triangle\" NumberOfElements=\"{}\">{}</Topology>\n", CT,
-                       whole_item(data + ":/collider_triangles", {CT, 3}, true));
-      x << "<Geometry GeometryType=\"XYZ\">" << frame_item(data + ":/collider_points", moving ? f : 0, collider_frames, {CP, 3})
+                       item("collider_triangles", {CT, 3}, true));
+      x << "<Geometry GeometryType=\"XYZ\">" << item(frame_group(moving ? f : 0) + "/collider_points", {CP, 3})
         << "</Geometry>\n</Grid>\n";
+    }
+    x << "</Grid>\n";
+  }
+  x << "<Grid Name=\"body\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (hsize_t f = 0; f < F; ++f) {
+    const std::string g = frame_group(f);
+    x << fmt::format("<Grid Name=\"frame {}\" GridType=\"Uniform\">\n<Time Value=\"{:.17g}\"/>\n", f, times[f]);
+    x << fmt::format("<Topology TopologyType=\"Mixed\" NumberOfElements=\"{}\">{}</Topology>\n", C,
+                     item("mixed", {static_cast<hsize_t>(mixed.size())}, true));
+    x << "<Geometry GeometryType=\"XYZ\">" << item(g + "/positions", {N, 3}) << "</Geometry>\n";
+    if (velocities)
+      x << "<Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">" << item(g + "/velocity", {N, 3})
+        << "</Attribute>\n";
+    x << "<Attribute Name=\"displacement\" AttributeType=\"Vector\" Center=\"Node\">" << item(g + "/displacement", {N, 3})
+      << "</Attribute>\n";
+    x << "<Attribute Name=\"inv_mass\" AttributeType=\"Scalar\" Center=\"Node\">" << item("inv_mass", {N})
+      << "</Attribute>\n";
+    x << "<Attribute Name=\"pinned\" AttributeType=\"Scalar\" Center=\"Node\">" << item("pinned", {N}) << "</Attribute>\n";
+    if (C > 0) {
+      x << "<Attribute Name=\"change\" AttributeType=\"Scalar\" Center=\"Cell\">" << item(g + "/change", {C})
+        << "</Attribute>\n";
+      x << "<Attribute Name=\"constraint_error\" AttributeType=\"Scalar\" Center=\"Cell\">"
+        << item(g + "/constraint_error", {C}) << "</Attribute>\n";
     }
     x << "</Grid>\n";
   }

@@ -1,21 +1,27 @@
-// ParaView output: an XDMF (version 2) description of a run file, for ParaView or any reader of
-// the format (VTK's XDMF reader, meshio).
+// ParaView output: an XDMF (version 3) description of a run file, read by ParaView's XDMF readers
+// (the legacy "XDMF Reader" and "Xdmf3ReaderS") and by meshio (meshio.xdmf.TimeSeriesReader).
 //
-//   RUN.xdmf      a temporal collection, one step per frame of the run file, each a spatial
-//                 collection of grids: "tets", "triangles", "edges" (the model's topology; edges
-//                 are the model's edges and the pairs of its distance constraints, so chains and
-//                 springs show), and "colliders" (planes as finite quads around the body, spheres
-//                 and bowls as meshes, moving with their motion).
+//   RUN.xdmf      two temporal collections, one uniform grid per frame of the run file:
+//                 "colliders" (when the scene has any: planes as finite quads around the body,
+//                 spheres and bowls as meshes, moving with their motion) and "body", last (meshio
+//                 reads the last collection): the model's tets, triangles and edges in one mixed
+//                 topology, in that order (edges are the model's edges and the pairs of its
+//                 distance constraints, so chains and springs show).
 //                 Point data: velocity (m/s), displacement from the rest position (m), inv_mass
 //                 (1/kg), pinned (1 where inv_mass = 0).
-//                 Cell data, per frame: strain of each edge (|x_i - x_j| / rest - 1), area change
-//                 of each triangle and volume change of each tet (A / A0 - 1, V / V0 - 1), and
-//                 constraint_error: the largest error (metrics::constraint_error) of the
-//                 constraints on the cell's particles (distance on an edge, volume and FEM on a
-//                 tet or a triangle; NaN where none).
-//   RUN.viz.h5    the fields computed here. Positions and velocities are not copied: the XDMF
-//                 reads them from the run file (/frames/positions, /frames/velocities) by
-//                 hyperslab.
+//                 Cell data, per frame, defined on every cell: change, the relative change of the
+//                 cell's measure (a tet's volume, a triangle's area, an edge's length: V / V0 - 1,
+//                 A / A0 - 1, l / l0 - 1), and constraint_error, the largest error
+//                 (metrics::constraint_error) of the constraints whose particles all belong to the
+//                 cell (a cloth triangle: the distance constraints of its edges), else of those
+//                 that share a particle with it, 0 where none does; NaN only where a constraint's
+//                 error is NaN.
+//   RUN.viz.h5    the data the XDMF reads, each a whole dataset (no hyperslab: meshio reads none):
+//                 per frame /frames/NNNNNN/ positions, displacement, velocity, change,
+//                 constraint_error (and collider_points); and for scripts/animate.py the fields
+//                 over all frames by cell type: edge_strain, edge_constraint_error,
+//                 triangle_area_change, triangle_constraint_error, tet_volume_change,
+//                 tet_constraint_error (F, cells), collider_points (F or 1, P, 3).
 #pragma once
 
 #include <filesystem>

@@ -13,6 +13,8 @@ PACKAGES=(
   libomp-14-dev                # scripts/fuzz.sh: OpenMP for clang (solvers/: g++ has its libgomp)
   python3-paraview  # pvbatch: the tests read the ParaView output with ParaView's own XDMF reader
                     # (Debian's python3-vtk9 has no XDMF reader)
+  xvfb xauth        # xvfb-run: ParaView renders (scripts/paraview_screenshot.py) without a display
+  python3-meshio    # tests/runfile/test_xdmf.py: the ParaView output read by meshio too (XDMF 3)
   ffmpeg            # scripts/animate.py: MP4 animations
 )
 
