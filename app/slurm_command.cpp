@@ -14,6 +14,10 @@ namespace pbdbench::app {
 
 namespace fs = std::filesystem;
 
+// Shards of one job array: a bound that names itself in the message (a positive-number check
+// printed its upper bound as a 309-digit number).
+constexpr int kMostShards = 100000;
+
 void add_array_options(CLI::App* command, ArrayOptions& o) {
   command->add_option("--shard", o.shard,
                       "Make only the runs of shard I of N, one task of a job array. Shards are counted from 0, as "
@@ -21,11 +25,11 @@ void add_array_options(CLI::App* command, ArrayOptions& o) {
   command->add_option("--merge", o.merge,
                       "After N shards: check that every run is finished (exit 1 naming the shards that are not) "
                       "and write the report; makes no run")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(1, kMostShards));
   command->add_option("--slurm", o.slurm,
                       "Submit the runs as a Slurm job array of N tasks and the merge after it (scripts and logs "
                       "in <run files>/slurm/; docs/cluster.md)")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(1, kMostShards));
   command->add_option("--slurm-opt", o.slurm_options,
                       "sbatch options for both jobs, e.g. --slurm-opt='--time=02:00:00 --partition=short' (repeatable)");
   command->add_option("--slurm-template", o.slurm_template,
