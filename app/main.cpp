@@ -238,6 +238,23 @@ int cmd_sweep(const std::string& file, const std::string& out_arg, int jobs, boo
   return result.ok() ? kExitOk : kExitFailure;
 }
 
+// `list --solver-keys`: which solver options each solver reads, as JSON, for the plots
+// (scripts/runfile.py solver_reads: a legend names only the keys a run's solver reads).
+// {"keys": [every solver option], "reads": {"xpbd": ["solver.iterations", ...], ...}}
+int cmd_list_solver_keys() {
+  const auto quoted = [](const std::string& s) { return "\"" + s + "\""; };
+  std::string keys, reads;
+  for (const OptionRow& r : solver_option_rows()) keys += (keys.empty() ? "" : ", ") + quoted(r.key);
+  for (const auto& s : solver_catalog()) {
+    std::string mine;
+    for (const OptionRow& r : solver_option_rows())
+      if (option_applies(r, s.family)) mine += (mine.empty() ? "" : ", ") + quoted(r.key);
+    reads += fmt::format("{}\n  {}: [{}]", reads.empty() ? "" : ",", quoted(s.name), mine);
+  }
+  std::cout << "{\"keys\": [" << keys << "],\n\"reads\": {" << reads << "\n}}\n";
+  return kExitOk;
+}
+
 int cmd_list() {
   std::cout << "Scenarios (" << config::scenarios_dir().string() << "):\n";
   const auto scenarios = config::list_scenarios();
@@ -448,7 +465,9 @@ int main(int argc, char** argv) {
   app::add_array_options(sweep, sweep_array);
   sweep->add_flag("--quiet", quiet, "Print only the summary");
 
-  app.add_subcommand("list", "List the scenarios, solvers and scene kinds");
+  bool list_solver_keys = false;
+  app.add_subcommand("list", "List the scenarios, solvers and scene kinds")
+      ->add_flag("--solver-keys", list_solver_keys, "Print which solver options each solver reads (JSON)");
 
   auto* describe = app.add_subcommand("describe", "Describe a scenario's keys (types, defaults, units, docs) or a scene kind's");
   describe->add_option("what", scenario, "A scenario (file or name) or a scene kind")->required();
@@ -590,7 +609,7 @@ int main(int argc, char** argv) {
     if (*run) return cmd_run(scenario, solver, sets, out, quiet, force, !no_xdmf);
     if (*export_sub) return cmd_export(files, out);
     if (*sweep) return cmd_sweep(file, out, jobs, force, sweep_array, sets, quiet, argc, argv);
-    if (app.got_subcommand("list")) return cmd_list();
+    if (app.got_subcommand("list")) return list_solver_keys ? cmd_list_solver_keys() : cmd_list();
     if (*describe) {
       if (!solver.empty()) sets.insert(sets.begin(), "solver.name=" + solver);
       return cmd_describe(scenario, sets, kind, describe_all);

@@ -17,8 +17,10 @@ faces, triangles as faces, edges (chains, springs, distance constraints) as line
 spheres and bowls in grey, moving with their motion.
 
 --view: the plane to project on, "xy", "xz" or "zy" (default: the one holding gravity and the
-model's widest horizontal axis). Frames follow the first run's frame times; the others show
-their frame at or before that time. --fps defaults to real time (the frame spacing), at most 60;
+model's widest horizontal axis), or "3d": a perspective view (the body's outer faces shaded by
+the field, its edges, the colliders), --elev and --azim degrees. Each panel is shaped like what
+it shows (the runs' bounds), so the body fills the frame rather than a strip of it. Frames
+follow the first run's frame times; the others show their frame at or before that time. --fps defaults to real time (the frame spacing), at most 60;
 when the frames are sparser than 1/30 s the script says how to ask for more
 (--set output.frame_every=1).
 
@@ -37,6 +39,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib import animation  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import runfile  # noqa: E402
@@ -167,14 +170,153 @@ class Panel:
             self.colliders.set_verts(list(c[:, [i, j]][self.viz["collider_triangles"]]))
 
 
-def bounds(runs, view):
-    """The axes' bounds: every frame of the runs that did not explode (all runs if each did)."""
+def outer_faces(tets):
+    """The faces of `tets` that belong to one tet only (the body's surface)."""
+    faces = tet_faces(tets)
+    key = np.sort(faces, axis=1)
+    _, first, count = np.unique(key, axis=0, return_index=True, return_counts=True)
+    keep = np.zeros(len(faces), dtype=bool)
+    keep[first[count == 1]] = True
+    return faces[keep], np.tile(np.arange(len(tets)), 4)[keep]
+
+
+class Panel3D:
+    """A run in perspective: the outer faces of its tets (else its triangles) coloured by the
+    field (plain where it has no value), its edges when it has no faces, the colliders clipped
+    to the panel's box."""
+
+    def __init__(self, ax, run, viz, box, field, norm, cmap, label, elev, azim, axes=(0, 2, 1)):
+        self.ax, self.run, self.viz, self.field, self.norm, self.cmap = ax, run, viz, field, norm, cmap
+        self.box = box
+        self.axes = list(axes)  # the model's axes drawn as the plot's x, y and z (z: up)
+        self.times = run.frame_time
+        ax.set_title(label, fontsize=8)
+        ax.view_init(elev=elev, azim=azim)
+        tets = np.asarray(viz.get("tets", np.zeros((0, 4), int)))
+        tris = np.asarray(viz.get("triangles", np.zeros((0, 3), int)))
+        self.edges = np.asarray(viz.get("edges", np.zeros((0, 2), int)))
+        if len(tets):
+            self.faces, self.owner = outer_faces(tets)
+            self.kind = "tet"
+        elif len(tris):
+            self.faces, self.owner, self.kind = tris, np.arange(len(tris)), "triangle"
+        else:
+            self.faces, self.owner, self.kind = np.zeros((0, 3), int), np.zeros(0, int), None
+        self.poly = Poly3DCollection([], cmap=cmap, norm=norm, edgecolor=(0, 0, 0, 0.25), linewidth=0.2)
+        ax.add_collection3d(self.poly)
+        self.lines = Line3DCollection([], cmap=cmap, norm=norm, linewidth=1.5)
+        ax.add_collection3d(self.lines)
+        self.colliders = None
+        if viz.get("collider_triangles") is not None and len(viz["collider_triangles"]):
+            self.colliders = Poly3DCollection([], facecolor=(0.6, 0.6, 0.6, 0.25), edgecolor=(0.5, 0.5, 0.5, 0.2),
+                                              linewidth=0.2)
+            ax.add_collection3d(self.colliders)
+
+    def values(self, name, f, n):
+        if self.field is None:
+            return np.full(n, np.nan)
+        v = self.viz.get(dict(zip(("edge", "triangle", "tet"), FIELDS[self.field]))[name])
+        return np.asarray(v[f], dtype=float) if v is not None and len(v) > f else np.full(n, np.nan)
+
+    def draw(self, t):
+        f = frame_at(self.times, t)
+        x = self.run.frames[f][:, self.axes]
+        if len(self.faces):
+            self.poly.set_verts(list(x[self.faces]))
+            v = self.values(self.kind, f, int(self.owner.max()) + 1 if len(self.owner) else 0)[self.owner]
+            if np.isfinite(v).any():
+                self.poly.set_array(np.ma.masked_invalid(v))
+            else:
+                self.poly.set_facecolor((0.75, 0.8, 0.9, 1.0))
+        elif len(self.edges):
+            self.lines.set_segments(list(x[self.edges]))
+            self.lines.set_array(np.ma.masked_invalid(self.values("edge", f, len(self.edges))))
+        if self.colliders is not None:
+            cp = self.viz["collider_points"]
+            c = (cp[min(f, len(cp) - 1)] if len(cp) > 1 else cp[0])[:, self.axes]
+            c = np.clip(c, self.box[0], self.box[1])
+            self.colliders.set_verts(list(c[self.viz["collider_triangles"]]))
+
+
+def bounds(runs, view, pad=0.04):
+    """The axes' bounds: every frame of the runs that did not explode (all runs if each did),
+    widened by `pad` of the largest span."""
     calm = [r for r in runs if not r.exploded] or runs
-    pts = np.concatenate([r.frames[:, :, list(view)].reshape(-1, 2) for r in calm])
+    pts = np.concatenate([r.frames[:, :, list(view)].reshape(-1, len(view)) for r in calm])
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    pad = 0.1 * max(float(np.max(hi - lo)), 1e-3)
-    return lo - pad, hi + pad
+    margin = pad * max(float(np.max(hi - lo)), 1e-3)
+    return lo - margin, hi + margin
+
+
+def panel_shape(lo, hi, view3d=False):
+    """(width, height) in inches of a panel that an equal-aspect drawing of the box lo..hi fills:
+    its aspect ratio kept within [1/3, 3] (a very long body gets a strip, not a line)."""
+    if view3d:
+        return 5.0, 4.2
+    w, h = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    ratio = min(3.0, max(1.0 / 3.0, w / h if h > 0 else 3.0))
+    area = 18.0  # square inches a panel gets
+    height = (area / ratio) ** 0.5
+    return ratio * height, height
+
+
+def drawn_fraction(fig):
+    """The share of the figure's area covered by its panels as drawn (equal-aspect axes shrink
+    to their data's shape: what an animation shows of the body)."""
+    fig.canvas.draw()
+    total = 0.0
+    for ax in fig.axes:
+        if ax.get_label() == "<colorbar>":
+            continue
+        bb = ax.get_position(original=False)
+        total += bb.width * bb.height
+    return total
+
+
+def layout(runs, vizes, view, view3d, field, norm, cmap, keys, elev=20.0, azim=-60.0):
+    """The figure and its panels, one per run, each shaped like the runs' bounds so that the
+    body fills it; a colour bar at the right when a field colours the cells."""
+    if view3d:
+        # Up (against gravity) is the plot's z; the widest horizontal axis its x.
+        horizontal, up = default_view(runs[0])
+        axes3 = (horizontal, 3 - horizontal - up, up)
+        lo, hi = bounds(runs, axes3)
+    else:
+        lo, hi = bounds(runs, view)
+    w, h = panel_shape(lo, hi, view3d)
+    bar = 0.9 if field else 0.0
+    fig = plt.figure(figsize=(w * len(runs) + bar + 0.3, h + 0.9), layout="constrained")
+    panels = []
+    for k, (run, viz) in enumerate(zip(runs, vizes)):
+        text = runfile.label(run, keys) if keys else f"{run.attrs.get('scenario', run.name)} [{run.attrs.get('solver', '?')}]"
+        status = run.status if not run.warnings else f"{run.status}, {len(run.warnings)} warning(s)"
+        codes = sorted({w_.split(" ")[0] for w_ in run.warnings})
+        label = f"{text}\n{status}" + (f": {', '.join(codes)}" if codes else "")
+        if view3d:
+            ax = fig.add_subplot(1, len(runs), k + 1, projection="3d")
+            panels.append(Panel3D(ax, run, viz, (lo, hi), field, norm, cmap, label, elev, azim, axes3))
+            ax.set_xlim(lo[0], hi[0])
+            ax.set_ylim(lo[1], hi[1])
+            ax.set_zlim(lo[2], hi[2])
+            ax.set_box_aspect(np.maximum(hi - lo, 1e-3 * float(np.max(hi - lo))))
+            ax.set_xlabel("xyz"[axes3[0]] + " (m)", fontsize=8)
+            ax.set_ylabel("xyz"[axes3[1]] + " (m)", fontsize=8)
+            ax.set_zlabel("xyz"[axes3[2]] + " (m)", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.locator_params(nbins=4)
+        else:
+            ax = fig.add_subplot(1, len(runs), k + 1)
+            panels.append(Panel(ax, run, viz, view, field, norm, cmap, label))
+            ax.set_xlim(lo[0], hi[0])
+            ax.set_ylim(lo[1], hi[1])
+            ax.set_xlabel("xyz"[view[0]] + " (m)")
+            ax.set_ylabel("xyz"[view[1]] + " (m)")
+    if field:
+        sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
+        fig.colorbar(sm, ax=fig.axes, shrink=0.8, pad=0.02,
+                     label=field.replace("_", " ") + (" (strain / area / volume change)" if field == "change" else ""))
+    return fig, panels
 
 
 def main(argv=None):
@@ -182,7 +324,9 @@ def main(argv=None):
     ap.add_argument("runs", nargs="+", help="run files (HDF5)")
     ap.add_argument("-o", "--out", required=True, help="OUT.mp4 (ffmpeg) or OUT.gif (Pillow)")
     ap.add_argument("--field", default="constraint_error", choices=["constraint_error", "change", "none"])
-    ap.add_argument("--view", choices=["xy", "xz", "zy"], help="the plane to project on")
+    ap.add_argument("--view", choices=["xy", "xz", "zy", "3d"], help="the plane to project on, or 3d")
+    ap.add_argument("--elev", type=float, default=20.0, help="--view 3d: the camera's elevation (degrees)")
+    ap.add_argument("--azim", type=float, default=-60.0, help="--view 3d: the camera's azimuth (degrees)")
     ap.add_argument("--fps", type=float, help="frames a second (default: real time, at most 60)")
     ap.add_argument("--pbdbench", help="the pbdbench executable, to export runs that have no RUN.viz.h5")
     ap.add_argument("--max-frames", type=int, default=0, help="draw at most this many frames (evenly spaced)")
@@ -201,7 +345,8 @@ def main(argv=None):
         if r.frames is None or r.frame_time is None or len(r.frame_time) == 0:
             raise SystemExit(f"animate.py: {r.path} has no frames")
     vizes = [viz_of(p, args.pbdbench) for p in args.runs]
-    view = tuple(AXES[c] for c in args.view) if args.view else default_view(runs[0])
+    view3d = args.view == "3d"
+    view = tuple(AXES[c] for c in args.view) if args.view and not view3d else default_view(runs[0])
 
     times = runs[0].frame_time
     if args.max_frames and len(times) > args.max_frames:
@@ -229,23 +374,7 @@ def main(argv=None):
     else:
         norm, cmap = matplotlib.colors.Normalize(0.0, vmax), "viridis"
 
-    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs) + 0.8, 4.6), squeeze=False)
-    lo, hi = bounds(runs, view)
-    panels = []
-    for ax, run, viz in zip(axes[0], runs, vizes):
-        text = runfile.label(run, keys) if keys else f"{run.attrs.get('scenario', run.name)} [{run.attrs.get('solver', '?')}]"
-        status = run.status if not run.warnings else f"{run.status}, {len(run.warnings)} warning(s)"
-        codes = sorted({w.split(" ")[0] for w in run.warnings})
-        label = f"{text}\n{status}" + (f": {', '.join(codes)}" if codes else "")
-        panels.append(Panel(ax, run, viz, view, field, norm, cmap, label))
-        ax.set_xlim(lo[0], hi[0])
-        ax.set_ylim(lo[1], hi[1])
-        ax.set_xlabel("xyz"[view[0]] + " (m)")
-        ax.set_ylabel("xyz"[view[1]] + " (m)")
-    if field:
-        sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
-        fig.colorbar(sm, ax=list(axes[0]), shrink=0.8,
-                     label=field.replace("_", " ") + (" (strain / area / volume change)" if field == "change" else ""))
+    fig, panels = layout(runs, vizes, view, view3d, field, norm, cmap, keys, args.elev, args.azim)
     scenario = runs[0].attrs.get("scenario", "")
     title = fig.suptitle("")
 
@@ -259,7 +388,8 @@ def main(argv=None):
     anim = animation.FuncAnimation(fig, update, frames=len(times), blit=False)
     writer = animation.FFMpegWriter(fps=fps) if ext == ".mp4" else animation.PillowWriter(fps=fps)
     anim.save(args.out, writer=writer, dpi=90)
-    print(f"animate.py: {args.out} ({len(times)} frames at {fps:g} fps, {len(runs)} run(s), colour: {args.field})")
+    print(f"animate.py: {args.out} ({len(times)} frames at {fps:g} fps, {len(runs)} run(s), colour: {args.field}, "
+          f"view: {args.view or 'xyz'[view[0]] + 'xyz'[view[1]]})")
     return 0
 
 

@@ -126,3 +126,160 @@ def markevery(k, count, points, marks=8):
 def shown_name(path):
     """A file's name for a title: its stem, never the folder it is in ("hanging_chain")."""
     return os.path.splitext(os.path.basename(str(path)))[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# What every figure checks before it is written: the legend inside the figure, no panel without
+# information, log axes where the values span decades, outliers named rather than flattening the
+# rest (docs/figures.md). The tests read the same functions from the figure objects.
+
+DECADES = 3.0  # values spanning more than this many decades go on a log axis
+
+
+def informative(arrays):
+    """Whether `arrays` hold a finite value other than 0: a panel of NaNs and zeros says nothing
+    that its title could not, and is left out (or replaced by a sentence)."""
+    for a in arrays:
+        v = finite(a)
+        if v.size and np.any(v != 0):
+            return True
+    return False
+
+
+def span_decades(arrays):
+    """How many decades the finite non-zero |values| of `arrays` span (0 with fewer than two)."""
+    v = np.concatenate([np.abs(finite(a)) for a in arrays] or [np.array([])])
+    v = v[v > 0]
+    if v.size < 2:
+        return 0.0
+    return float(np.log10(v.max() / v.min()))
+
+
+def scale_for(arrays, decades=DECADES):
+    """The y scale for `arrays`: "log" when their values are all positive and span more than
+    `decades` decades, "symlog" when they change sign and span as much, else "linear"."""
+    v = np.concatenate([finite(a) for a in arrays] or [np.array([])])
+    if v.size < 2 or span_decades([v]) <= decades:
+        return "linear"
+    return "log" if np.all(v > 0) else "symlog"
+
+
+def set_scale(ax, arrays, decades=DECADES):
+    """Sets ax's y scale by scale_for (symlog's linear part: the smallest non-zero |value|)."""
+    scale = scale_for(arrays, decades)
+    if scale == "symlog":
+        v = np.abs(np.concatenate([finite(a) for a in arrays]))
+        ax.set_yscale("symlog", linthresh=float(v[v > 0].min()))
+    elif scale == "log":
+        ax.set_yscale("log")
+    return scale
+
+
+BULK = 0.01   # the share of the points at each end that bulk_limits sets aside to find the bulk
+SQUEEZE = 4.0  # the extremes flatten the bulk when all points span this many times the bulk's range
+
+
+def bulk_limits(arrays, log=False, margin=0.05):
+    """Limits for an axis whose extremes would flatten the rest: a spike of a few points (25,000 J
+    for one row beside runs that stay under 3,000). The bulk is the pooled finite values between
+    the BULK and 1 - BULK quantiles (in decades on a log axis); when all values span more than
+    SQUEEZE times the bulk's range, the limits cover the values within one bulk range of the bulk,
+    with `margin`; else (or with fewer than 20 values) None: the axis needs no trimming."""
+    v = np.concatenate([finite(a, log) for a in arrays] or [np.array([])])
+    if v.size < 20:
+        return None
+    if log:
+        v = np.log10(v)
+    lo, hi = np.quantile(v, [BULK, 1.0 - BULK])
+    width = hi - lo
+    if width <= 0 or (v.max() - v.min()) <= SQUEEZE * width:
+        return None
+    kept = v[(v >= lo - width) & (v <= hi + width)]
+    a, b = float(kept.min()), float(kept.max())
+    pad = margin * (b - a) if b > a else 0.5
+    a, b = a - pad, b + pad
+    return (10.0 ** a, 10.0 ** b) if log else (a, b)
+
+
+def name_outliers(ax, notes, fontsize=7):
+    """Writes `notes` (one line each: which line runs off the axis and how far, "listing_update:
+    up to 1.4e13, off the axis") in the panel's upper left corner, over a white box."""
+    if not notes:
+        return None
+    return ax.text(0.01, 0.98, "\n".join(notes), transform=ax.transAxes, ha="left", va="top",
+                   fontsize=fontsize, color="0.15", zorder=10,
+                   bbox=dict(boxstyle="round,pad=0.3", facecolor="white", edgecolor="0.6", alpha=0.9))
+
+
+def value_text(v):
+    """A number for a label: 3 significant digits, exponent form outside [1e-2, 1e4)."""
+    if v is None or not np.isfinite(v):
+        return "NaN"
+    if v != 0 and (abs(v) < 1e-2 or abs(v) >= 1e4):
+        return f"{v:.2e}"
+    return f"{v:.3g}"
+
+
+def wrap(text, width):
+    """`text` broken into lines of at most `width` characters (at spaces), the following lines
+    indented."""
+    import textwrap
+    return textwrap.fill(text, max(20, width), break_long_words=False, break_on_hyphens=False,
+                         subsequent_indent="  ")
+
+
+def figure_legend(fig, handles, labels, fontsize=8, max_cols=3, top=0.95, slot=None):
+    """A legend for the whole figure, inside the figure. In `slot`, a free cell of the panels' grid
+    (an odd number of panels in two columns), when it fits there: the cell is no empty panel then.
+    Else below the panels: labels wrapped to the width of their column, as many columns (at most
+    max_cols) as fit, and the figure made taller by the legend's height so that the panels keep
+    theirs. Lays the figure out (tight_layout); returns the legend."""
+    renderer = fig.canvas.get_renderer()
+    if slot is not None:
+        slot.axis("off")
+        fig.tight_layout(rect=(0, 0, 1, top))
+        cell = slot.get_window_extent(renderer)
+        chars = int(cell.width / fig.dpi * 72.0 / (0.55 * fontsize)) - 8
+        legend = slot.legend(handles, [wrap(l, chars) for l in labels], loc="center", fontsize=fontsize,
+                             frameon=False)
+        box = legend.get_window_extent(renderer)
+        if box.height <= 1.1 * cell.height and inside_figure(fig, legend):
+            return legend
+        legend.remove()
+        fig.delaxes(slot)
+    width_px = fig.get_figwidth() * fig.dpi
+    legend = None
+    for ncol in range(max(1, min(max_cols, len(labels))), 0, -1):
+        chars = int(fig.get_figwidth() * 72.0 / (0.55 * fontsize) / ncol) - 8
+        legend = fig.legend(handles, [wrap(l, chars) for l in labels], loc="lower center",
+                            bbox_to_anchor=(0.5, 0.0), ncol=ncol, fontsize=fontsize, frameon=False)
+        if legend.get_window_extent(renderer).width <= 0.98 * width_px or ncol == 1:
+            break
+        legend.remove()
+    height = legend.get_window_extent(renderer).height / fig.dpi + 0.15
+    old = fig.get_figheight()
+    fig.set_figheight(old + height)
+    fig.tight_layout(rect=(0, height / (old + height), 1, top))
+    return legend
+
+
+def inside_figure(fig, artist, slack=1.0):
+    """Whether `artist` (a legend, a title) lies inside the figure once drawn (within `slack`
+    pixels)."""
+    fig.canvas.draw()
+    bb = artist.get_window_extent(fig.canvas.get_renderer())
+    w, h = fig.get_figwidth() * fig.dpi, fig.get_figheight() * fig.dpi
+    return bb.x0 >= -slack and bb.y0 >= -slack and bb.x1 <= w + slack and bb.y1 <= h + slack
+
+
+def axes_data(ax):
+    """The y values an axes draws: its lines' and its bars' (patches' heights), as arrays."""
+    out = [np.asarray(line.get_ydata(), dtype=float) for line in ax.get_lines()]
+    bars = [p.get_height() for p in ax.patches if hasattr(p, "get_height")]
+    if bars:
+        out.append(np.asarray(bars, dtype=float))
+    for c in ax.collections:
+        offsets = np.asarray(c.get_offsets(), dtype=float)
+        if offsets.ndim == 2 and offsets.shape[0] and offsets.shape[1] == 2:
+            out.append(offsets[:, 1])
+    return out

@@ -1,9 +1,14 @@
 #!/usr/bin/python3
-"""Draws what `pbdbench regress` found: the change of every metric against its baseline, in units of
-its tolerance, one bar per case and metric (worse in red, better in green, same in grey; timings
-and new metrics left out).
+"""Draws what `pbdbench regress` found: the change of each metric against its baseline, in units of
+its tolerance (change / allowed), for the metrics that moved the most, one bar each (worse in red,
+better in green, within the tolerance in grey; timings and new metrics left out).
 
     plot_regress.py REGRESS.h5 OUT.png
+
+The figure stays readable at any number of cases: it shows at most MAX_BARS bars, the largest
+|change / allowed| first, and says in its title how many metrics of how many cases it left out
+and the largest |change / allowed| among them; the figure's height is bounded. When no metric
+moved at all (every change 0), there are no bars to draw: the figure says so in words.
 """
 import math
 import os
@@ -15,7 +20,72 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import plot_axes  # noqa: E402
 import runfile  # noqa: E402
+
+MAX_BARS = 30  # the most bars a figure shows: beyond, labels would no longer be readable
+CLIP = 10.0    # |change / allowed| beyond this is drawn at the edge, its value written beside
+
+
+def rows_of(columns):
+    """[(case, metric, verdict, change / allowed)] for the rows that compare a value with its
+    baseline (not "ratio" nor "new"); a NaN change is left out, a change with no tolerance
+    (allowed 0) is +-inf."""
+    out = []
+    for c, m, v, d, a in zip(columns["case"], columns["metric"], columns["verdict"], columns["change"],
+                             columns["allowed"]):
+        if v in ("ratio", "new") or math.isnan(d):
+            continue
+        x = d / a if a > 0 else (0.0 if d == 0 else math.copysign(math.inf, d))
+        out.append((c, m, v, x))
+    return out
+
+
+def figure(columns):
+    """The figure of a regression file's columns (runfile.load_regress(path).columns)."""
+    verdicts = list(columns["verdict"])
+    rows = rows_of(columns)
+    cases = sorted({r[0] for r in rows})
+    moved = sorted((r for r in rows if r[3] != 0), key=lambda r: -abs(r[3]))
+    shown, rest = moved[:MAX_BARS], moved[MAX_BARS:]
+    title = (f"regression: {verdicts.count('worse')} worse, {verdicts.count('better')} better, "
+             f"{verdicts.count('same')} same ({len(rows)} metrics of {len(cases)} cases)")
+    if not shown:
+        fig, ax = plt.subplots(figsize=(7, 2.4))
+        ax.axis("off")
+        ax.text(0.5, 0.5, f"no metric moved: every change of the {len(rows)} metrics of {len(cases)} "
+                "cases is 0", transform=ax.transAxes, ha="center", va="center", fontsize=10)
+        ax.set_title(title, fontsize=9)
+        fig.tight_layout()
+        return fig
+    unmoved = len(rows) - len(moved)
+    notes = []
+    if rest:
+        notes.append(f"{len(rest)} more moved, |change| <= {plot_axes.value_text(abs(rest[0][3]))} x allowed")
+    if unmoved:
+        notes.append(f"{unmoved} unchanged")
+    shown = shown[::-1]  # the largest at the top
+    labels = [f"{c}: {m}" for c, m, _, _ in shown]
+    values = [max(-CLIP, min(CLIP, x)) for _, _, _, x in shown]
+    colors = [{"worse": "tab:red", "better": "tab:green"}.get(v, "0.6") for _, _, v, _ in shown]
+    fig, ax = plt.subplots(figsize=(8, 1.3 + 0.24 * len(shown)))
+    ax.barh(range(len(shown)), values, color=colors)
+    for k, (_, _, _, x) in enumerate(shown):
+        if abs(x) > CLIP:  # clipped: its value beside the bar
+            ax.text(math.copysign(CLIP, x), k, f" {plot_axes.value_text(x)} ", va="center",
+                    ha="right" if x > 0 else "left", fontsize=7, color="white")
+    ax.set_yticks(range(len(shown)))
+    ax.set_yticklabels(labels, fontsize=8)
+    ax.axvline(-1, color="k", lw=0.5, ls="--")
+    ax.axvline(1, color="k", lw=0.5, ls="--")
+    ax.axvline(0, color="k", lw=0.5)
+    top = max(abs(v) for v in values)
+    ax.set_xlim(-max(1.2, 1.05 * top), max(1.2, 1.05 * top))
+    ax.set_xlabel(f"change / allowed (dashed: the tolerance; clipped to +-{CLIP:g})")
+    ax.set_title(title + ("\n" + "; ".join(notes) if notes else ""), fontsize=9)
+    ax.grid(True, axis="x", alpha=0.3)
+    fig.tight_layout()
+    return fig
 
 
 def main(argv):
@@ -27,32 +97,14 @@ def main(argv):
     except runfile.RunFileError as e:
         print(f"plot_regress.py: {e}", file=sys.stderr)
         return 2
-    cases, metrics, verdicts = columns["case"], columns["metric"], columns["verdict"]
-    change, allowed = list(columns["change"]), list(columns["allowed"])
-    labels, values, colors = [], [], []
-    for c, m, v, d, a in zip(cases, metrics, verdicts, change, allowed):
-        if v in ("ratio", "new"):
-            continue
-        if math.isnan(d):
-            x = 0.0
-        elif a > 0:
-            x = d / a
-        else:
-            x = 0.0 if d == 0 else math.copysign(10.0, d)
-        labels.append(f"{c} {m}")
-        values.append(max(-10.0, min(10.0, x)))
-        colors.append({"worse": "tab:red", "better": "tab:green"}.get(v, "0.6"))
-    fig, ax = plt.subplots(figsize=(7, max(2.5, 0.16 * len(labels))))
-    ax.barh(range(len(labels)), values, color=colors)
-    ax.set_yticks(range(len(labels)))
-    ax.set_yticklabels(labels, fontsize=5)
-    ax.axvline(-1, color="k", lw=0.5, ls="--")
-    ax.axvline(1, color="k", lw=0.5, ls="--")
-    ax.set_xlabel("change / allowed (clipped to +-10; dashed: the tolerance)")
-    ax.set_title(f"regression: {verdicts.count('worse')} worse, {verdicts.count('better')} better, "
-                 f"{verdicts.count('same')} same", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(argv[2], dpi=110)
+    fig = figure(columns)
+    try:
+        fig.savefig(argv[2], dpi=110)
+    except (OSError, ValueError) as e:
+        print(f"plot_regress.py: cannot write {argv[2]}: {e}", file=sys.stderr)
+        return 1
+    finally:
+        plt.close(fig)
     print(f"plot_regress.py: -> {argv[2]}")
     return 0
 

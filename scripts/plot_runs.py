@@ -55,10 +55,14 @@ def all_nan(runs, name):
 
 
 def run_labels(runs):
+    """Each run's legend label: the configuration keys whose values differ between the runs, less
+    the solver options its solver does not read (ref-be's iterations: runfile.keys_read)."""
     keys = runfile.differing_keys(runs) if len(runs) > 1 else []
+    reads = runfile.solver_reads() if keys else None
     labels = []
     for run in runs:
-        text = runfile.label(run, keys) if keys else (
+        mine = runfile.keys_read(run, keys, reads) if keys else []
+        text = runfile.label(run, mine) if mine else (
             run.name if len(runs) > 1 else str(run.attrs.get("solver", run.name)))
         if run.status != "complete":
             text += f" ({run.status})"
@@ -208,7 +212,12 @@ def keep_exploded_apart(ax, runs, curves):
     lim = plot_axes.keep_to(ax, kept, [y for _, y in others], log)
     if lim is None:
         return set(), None
-    return {k for k, y in others if plot_axes.off_axis(y, lim, log)}, lim
+    # A spike of a few points (one row of 25,000 J) flattens the rest as much as a run does.
+    bulk = plot_axes.bulk_limits(kept, log)
+    if bulk is not None:
+        lim = bulk
+        ax.set_ylim(*lim)
+    return {k for k, _, _, y in curves if plot_axes.off_axis(y, lim, log)}, lim
 
 
 def figure(runs, series=None, title=None):
@@ -224,11 +233,12 @@ def figure(runs, series=None, title=None):
         ax = scratch.add_subplot()
         curves = draw(ax, colors)
         scratch.delaxes(ax)
-        if curves:
+        # A panel whose lines are NaN or 0 throughout says nothing: left out.
+        if curves and plot_axes.informative([y for _, _, _, y in curves]):
             drawn.append((title_, ylabel, draw, styles))
     plt.close(scratch)
     if not drawn:
-        raise SystemExit("plot_runs.py: nothing to plot: every series is NaN or empty")
+        raise SystemExit("plot_runs.py: nothing to plot: every series is NaN, 0 or empty")
 
     ncols = 2 if len(drawn) > 1 else 1
     nrows = (len(drawn) + ncols - 1) // ncols
@@ -241,8 +251,15 @@ def figure(runs, series=None, title=None):
         for k, _, _, _ in curves:
             lines[k] = lines.get(k, 0) + 1
         gone, lim = keep_exploded_apart(ax, runs, curves)
-        for k in gone:
+        notes = []
+        for k in sorted(gone):
             off.setdefault(k, []).append(title_)
+            peak = max(float(np.max(np.abs(v))) for v in (plot_axes.finite(y) for kk, _, _, y in curves if kk == k)
+                       if v.size)
+            unit = ylabel.rsplit("[", 1)[-1].rstrip("]") if "[" in ylabel else ""
+            notes.append(f"{labels[k]}: {'exploded, ' if runs[k].exploded else ''}up to "
+                         f"{plot_axes.value_text(peak)}{' ' + unit if unit and unit != '1' else ''}, off the axis")
+        plot_axes.name_outliers(ax, notes)  # named where it is missing, not only in the legend
         log = ax.get_yscale() == "log"
         for name in dict.fromkeys(c[1] for c in curves):
             of_name = [c for c in curves if c[1] == name]
@@ -259,8 +276,10 @@ def figure(runs, series=None, title=None):
         ax.grid(True, alpha=0.3)
         if styles:
             handles = [plt.Line2D([], [], color="0.3", linestyle=s) for s, _ in styles]
-            ax.legend(handles, [lab for _, lab in styles], fontsize=8, loc="best")
-    for ax in list(axes.flat)[len(drawn):]:
+            # The upper left holds the note on lines off the axis (plot_axes.name_outliers).
+            ax.legend(handles, [lab for _, lab in styles], fontsize=8, loc="upper right" if notes else "best")
+    free = list(axes.flat)[len(drawn):]
+    for ax in free[1:]:
         fig.delaxes(ax)
 
     shown = list(labels)
@@ -280,12 +299,11 @@ def figure(runs, series=None, title=None):
     if any(r.exploded for r in runs):
         handles.append(plt.Line2D([], [], color="0.3", marker="x", linestyle="none", mew=2))
         shown.append("explosion")
-    ncol = 1 if any(len(s) > 60 for s in shown) else min(len(shown), 3)
-    fig.legend(handles, shown, loc="lower center", ncol=ncol, fontsize=8 if ncol == 1 else 9, frameon=False)
     scenario = plot_axes.shown_name(runs[0].attrs.get("scenario", ""))
     fig.suptitle(title or (f"scenario {scenario}" if scenario else ""))
-    legend_rows = (len(shown) + ncol - 1) // ncol
-    fig.tight_layout(rect=(0, min(0.05 + 0.035 * legend_rows, 0.45), 1, 0.96))
+    # In the grid's free cell when there is one and it fits, else below the panels (the figure
+    # grows by its height); inside the figure, labels wrapped to fit.
+    plot_axes.figure_legend(fig, handles, shown, fontsize=8, top=0.95, slot=free[0] if free else None)
     return fig
 
 

@@ -24,7 +24,10 @@ going, or killed) loads like any other: its series end at the writer's last flus
 
 Depends on numpy and h5py only; runs under /usr/bin/python3 (Python 3.11: tomllib).
 """
+import json
 import os
+import shutil
+import subprocess
 import sys
 import tomllib
 
@@ -34,7 +37,8 @@ import numpy as np
 __all__ = ["Run", "Compare", "Converge", "Regress", "RunFileError", "load", "load_viz", "is_viz",
            "without_viz",
            "load_compare", "load_converge", "load_regress", "load_any", "kind", "status_of",
-           "label", "differing_keys", "config_value", "format_value"]
+           "label", "differing_keys", "config_value", "format_value", "solver_reads", "keys_read",
+           "find_pbdbench"]
 
 
 class RunFileError(Exception):
@@ -206,6 +210,52 @@ def differing_keys(runs):
     return [k for k in keys if len({repr(f.get(k, missing)) for f in flat}) > 1]
 
 
+def find_pbdbench(given=None):
+    """The pbdbench executable: `given`, $PBDBENCH_BIN, pbdbench on the PATH, or the build
+    folder's (build/pbdbench beside scripts/); None when there is none."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    for candidate in (given, os.environ.get("PBDBENCH_BIN"), shutil.which("pbdbench"),
+                      os.path.join(here, "..", "build", "pbdbench")):
+        if candidate and os.path.isfile(candidate) and os.access(candidate, os.X_OK):
+            return candidate
+    return None
+
+
+_SOLVER_READS = {}
+
+
+def solver_reads(pbdbench=None):
+    """Which solver options each solver reads, from the solver catalogue (`pbdbench list
+    --solver-keys`): (every solver option key, {solver name: set of the keys it reads}); None
+    when no pbdbench is found or it cannot say (an older build)."""
+    exe = find_pbdbench(pbdbench)
+    if exe is None:
+        return None
+    if exe not in _SOLVER_READS:
+        try:
+            p = subprocess.run([exe, "list", "--solver-keys"], capture_output=True, text=True, timeout=60)
+            table = json.loads(p.stdout) if p.returncode == 0 else None
+            _SOLVER_READS[exe] = (set(table["keys"]), {k: set(v) for k, v in table["reads"].items()})
+        except (OSError, ValueError, KeyError, TypeError, subprocess.TimeoutExpired):
+            _SOLVER_READS[exe] = None
+    return _SOLVER_READS[exe]
+
+
+def keys_read(run, keys, reads=None):
+    """The keys of `keys` that the run's solver reads: a solver option (solver.iterations, ...)
+    that its solver does not read (ref-be's iterations) is left out; every other key is kept.
+    `reads`: solver_reads()'s answer (looked up when None); without it every key is kept."""
+    reads = solver_reads() if reads is None else reads
+    if not reads:
+        return list(keys)
+    options, by_solver = reads
+    solver = config_value(run, "solver.name") or run.attrs.get("solver")
+    mine = by_solver.get(solver)
+    if mine is None:
+        return list(keys)
+    return [k for k in keys if k not in options or k in mine]
+
+
 def format_value(value):
     if isinstance(value, float):
         return f"{value:g}"
@@ -255,9 +305,10 @@ def without_viz(paths, program):
 def load_viz(path):
     """The fields of a run's ParaView export (RUN.viz.h5, written by `pbdbench run` or
     `pbdbench export RUN.h5`; runfile/xdmf.hpp): name -> numpy array (edges, triangles, tets,
-    collider_points (F or 1, P, 3), collider_triangles, displacement, inv_mass, pinned, and per
-    frame and cell edge_strain, edge_constraint_error, triangle_area_change,
-    triangle_constraint_error, tet_volume_change, tet_constraint_error). Raises RunFileError."""
+    collider_points (F or 1, P, 3), collider_triangles, mixed, inv_mass, pinned, and per frame
+    and cell edge_strain, edge_constraint_error, triangle_area_change, triangle_constraint_error,
+    tet_volume_change, tet_constraint_error); the per-frame groups the XDMF reads (/frames/) are
+    left out. Raises RunFileError."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise RunFileError(f"{path}: no such file")

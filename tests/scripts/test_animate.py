@@ -69,8 +69,9 @@ class Animate(unittest.TestCase):
         self.assertEqual(int(p.stdout.strip()), 16, "0.25 s at a frame per 1/60 s, and the initial frame")
 
     def test_the_field_colours_the_cells_that_carry_it(self):
-        # A cloth's triangles carry no constraint (their constraint_error is NaN throughout): its
-        # edges carry the colour. The FEM bar's tets carry it on their faces.
+        # A cloth's triangles carry no constraint of their own: their constraint_error is that of
+        # their edges' distance constraints (runfile/xdmf.hpp), so its faces carry the colour, as
+        # the FEM bar's tets do; a chain has edges only, and they carry it.
         sys.path.insert(0, SCRIPTS)
         import matplotlib
         matplotlib.use("Agg")
@@ -82,7 +83,11 @@ class Animate(unittest.TestCase):
                 "--set", "time.duration=0.1", "--out", cloth, "--quiet")
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         norm = matplotlib.colors.Normalize(0.0, 1.0)
-        for path, faces in ((cloth, False), (self.xpbd, True)):
+        chain = os.path.join(self.dir, "chain_colour.h5")
+        r = run(BIN, "run", os.path.join(SCENARIOS, "hanging_chain.toml"), "--set", "time.duration=0.1",
+                "--out", chain, "--quiet")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        for path, faces in ((cloth, True), (self.xpbd, True), (chain, False)):
             run_ = runfile.load(path)
             viz = animate.viz_of(path, BIN)
             fig, ax = plt.subplots()
@@ -96,6 +101,40 @@ class Animate(unittest.TestCase):
                 self.assertEqual(len(panel.lines.get_segments()), len(viz["edges"]))
                 self.assertTrue(np.isfinite(np.ma.filled(panel.lines.get_array(), np.nan)).any(), path)
             plt.close(fig)
+
+    def test_the_panels_fill_the_frame_flat_and_in_3d(self):
+        # Each panel is shaped like the runs' bounds: the long bar fills its panel instead of a
+        # strip of a square one. In 3D the body is drawn by its outer faces.
+        sys.path.insert(0, SCRIPTS)
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        import animate
+        import runfile
+        runs = [runfile.load(p) for p in (self.xpbd, self.ref)]
+        vizes = [animate.viz_of(p, BIN) for p in (self.xpbd, self.ref)]
+        norm = matplotlib.colors.Normalize(0.0, 1.0)
+        view = animate.default_view(runs[0])
+        fig, panels = animate.layout(runs, vizes, view, False, "constraint_error", norm, "viridis", ["solver.iterations"])
+        for p in panels:
+            p.draw(runs[0].frame_time[-1])
+        self.assertGreater(animate.drawn_fraction(fig), 0.5, "the panels cover most of the frame")
+        plt.close(fig)
+        fig, panels = animate.layout(runs, vizes, view, True, "constraint_error", norm, "viridis", ["solver.iterations"])
+        for p in panels:
+            p.draw(runs[0].frame_time[-1])
+        self.assertEqual([ax.name for ax in fig.axes if ax.get_label() != "<colorbar>"], ["3d", "3d"])
+        tets = len(vizes[0]["tets"])
+        self.assertLess(len(panels[0].faces), 4 * tets, "only the outer faces are drawn")
+        self.assertTrue(np.isfinite(np.ma.filled(panels[0].poly.get_array(), np.nan)).any())
+        self.assertGreater(animate.drawn_fraction(fig), 0.5)
+        plt.close(fig)
+        out = os.path.join(self.dir, "bar3d.gif")
+        r = run(sys.executable, ANIMATE, self.xpbd, "-o", out, "--view", "3d", "--max-frames", "3", "--pbdbench", BIN)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("view: 3d", r.stdout)
+        with Image.open(out) as im:
+            self.assertEqual(im.n_frames, 3)
 
     def test_sparse_frames_say_how_to_ask_for_more_and_bad_names_are_refused(self):
         sparse = os.path.join(self.dir, "sparse.h5")
