@@ -17,6 +17,7 @@ import shutil
 import subprocess
 import sys
 import unittest
+import unittest.mock
 
 import h5py
 import matplotlib
@@ -209,6 +210,13 @@ class PlotRunsTest(unittest.TestCase):
             self.assertEqual([ax for ax in fig.axes if not ax.axison and ax.get_legend() is None], [],
                              "no empty cell")
             plt.close(fig)
+        # Labels of 50 to 60 characters on one panel: three columns of them were wider than the
+        # figure, and the legend was cut off on both sides.
+        long_labels = [f"name=xpbd, iterations={k}, substeps={k}, order=gauss-seidel, seed=1" for k in range(4)]
+        with unittest.mock.patch.object(plot_runs, "run_labels", lambda runs_: long_labels[:len(runs_)]):
+            fig = plot_runs.figure(runs, series=["total_energy"])
+        self.assertTrue(plot_axes.inside_figure(fig, fig.legends[0]))
+        plt.close(fig)
 
     def test_a_spike_is_named_not_left_to_flatten_the_others(self):
         runs = [runfile.load(p, frames=False, model=False)
