@@ -1,10 +1,13 @@
 // The planned run, estimated before it starts: steps, rows, the run file's size, the memory and
 // the time it will take, and whether this machine can take it.
 //
-// The estimates are orders of magnitude, not predictions: costs per constraint projection and per
-// particle measured on a 2-core AMD EPYC (plan.cpp), the largest data structures counted
-// from the model. They exist to refuse up front what would exhaust the memory or the disk, or
-// run for days, instead of finding out hours later; --force runs it anyway.
+// The time is a cost model fitted to the catalog scenes (plan.cpp: per particle, substep,
+// constraint projection by kind, collider and contact; per particle and constraint for the
+// reference and global solvers), within a factor of 2 of what those scenes measure
+// (tests/harness/test_plan.cpp); the memory counts the largest data structures of the model.
+// They exist to refuse up front what would exhaust the memory or the disk, or run for days,
+// instead of finding out hours later (--force runs it anyway), and to say how long a long run
+// will take.
 #pragma once
 
 #include <filesystem>
@@ -26,6 +29,9 @@ struct RunPlan {
 };
 
 RunPlan plan_run(const Model& model, const SolverOptions& solver, const config::RunOptions& run);
+
+// The estimated time of one step (s): the solver's step, and the step's metrics and row.
+double step_seconds(const Model& model, const SolverOptions& solver);
 
 // "" when the plan fits this machine (memory available, free space at `out`'s folder, at most a
 // day of wall time), else why not, with the numbers.
