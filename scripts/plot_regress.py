@@ -18,6 +18,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import plot_axes  # noqa: E402
@@ -46,16 +47,18 @@ def figure(columns):
     verdicts = list(columns["verdict"])
     rows = rows_of(columns)
     cases = sorted({r[0] for r in rows})
+    unmeasured = sum(1 for v, d in zip(verdicts, columns["change"]) if v not in ("ratio", "new") and math.isnan(d))
     moved = sorted((r for r in rows if r[3] != 0), key=lambda r: -abs(r[3]))
     shown, rest = moved[:MAX_BARS], moved[MAX_BARS:]
     title = (f"regression: {verdicts.count('worse')} worse, {verdicts.count('better')} better, "
-             f"{verdicts.count('same')} same ({len(rows)} metrics of {len(cases)} cases)")
+             f"{verdicts.count('same')} same ({len(rows)} metrics of {len(cases)} cases compared"
+             + (f"; {unmeasured} not measured by their case" if unmeasured else "") + ")")
     if not shown:
         fig, ax = plt.subplots(figsize=(7, 2.4))
         ax.axis("off")
         ax.text(0.5, 0.5, f"no metric moved: every change of the {len(rows)} metrics of {len(cases)} "
                 "cases is 0", transform=ax.transAxes, ha="center", va="center", fontsize=10)
-        ax.set_title(title, fontsize=9)
+        ax.set_title(plot_axes.wrap(title, 70), fontsize=9)
         fig.tight_layout()
         return fig
     unmoved = len(rows) - len(moved)
@@ -70,19 +73,26 @@ def figure(columns):
     colors = [{"worse": "tab:red", "better": "tab:green"}.get(v, "0.6") for _, _, v, _ in shown]
     fig, ax = plt.subplots(figsize=(8, 1.3 + 0.24 * len(shown)))
     ax.barh(range(len(shown)), values, color=colors)
-    for k, (_, _, _, x) in enumerate(shown):
-        if abs(x) > CLIP:  # clipped: its value beside the bar
-            ax.text(math.copysign(CLIP, x), k, f" {plot_axes.value_text(x)} ", va="center",
-                    ha="right" if x > 0 else "left", fontsize=7, color="white")
+    top = max(abs(v) for v in values)
+    # The scale of the largest bar: changes far inside the tolerance (rounding, 1e-13 of it) show
+    # as bars rather than as nothing on an axis to +-1.
+    edge = max(1.2, 1.1 * top) if top >= 0.05 else 1.35 * top
+    for k, (v, (_, _, _, x)) in enumerate(zip(values, shown)):
+        ax.text(v, k, f" {plot_axes.value_text(x)} " if abs(x) <= CLIP else f" {plot_axes.value_text(x)} (clipped) ",
+                va="center", ha="left" if v > 0 else "right", fontsize=7)
     ax.set_yticks(range(len(shown)))
     ax.set_yticklabels(labels, fontsize=8)
-    ax.axvline(-1, color="k", lw=0.5, ls="--")
-    ax.axvline(1, color="k", lw=0.5, ls="--")
     ax.axvline(0, color="k", lw=0.5)
-    top = max(abs(v) for v in values)
-    ax.set_xlim(-max(1.2, 1.05 * top), max(1.2, 1.05 * top))
-    ax.set_xlabel(f"change / allowed (dashed: the tolerance; clipped to +-{CLIP:g})")
-    ax.set_title(title + ("\n" + "; ".join(notes) if notes else ""), fontsize=9)
+    if edge >= 1:
+        ax.axvline(-1, color="k", lw=0.5, ls="--")
+        ax.axvline(1, color="k", lw=0.5, ls="--")
+        ax.set_xlabel(f"change / allowed (dashed: the tolerance; clipped to +-{CLIP:g})")
+    else:
+        ax.set_xlabel("change / allowed (every change far inside its tolerance, which is at +-1)")
+    ax.set_xlim(-edge * 1.25, edge * 1.25)
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(5, symmetric=True))
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: "0" if v == 0 else plot_axes.value_text(v)))
+    ax.set_title(plot_axes.wrap(title, 70) + ("\n" + "; ".join(notes) if notes else ""), fontsize=9)
     ax.grid(True, axis="x", alpha=0.3)
     fig.tight_layout()
     return fig

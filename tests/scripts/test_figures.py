@@ -125,6 +125,21 @@ class PlotRegressTest(unittest.TestCase):
         self.assertTrue(any("132 metrics of 22 cases" in t for t in fig_texts(fig)), fig_texts(fig))
         plt.close(fig)
 
+    def test_changes_far_inside_the_tolerance_still_show(self):
+        # The quick tier's regress.png: 6 metrics moved by 1e-13 to 6e-12 of their tolerance
+        # (rounding), 94 not at all, 32 not measured by their case (NaN).
+        cases = [f"case_{k:02d}" for k in range(22)]
+        changes = [0.0] * 132
+        changes[:3] = [5.9e-12, 3.3e-13, -1.1e-13]
+        changes[100:] = [float("nan")] * 32
+        fig = plot_regress.figure(regress_columns(cases, self.METRICS, changes))
+        ax = fig.axes[0]
+        self.assertEqual(len(ax.patches), 3)
+        self.assertGreater(max(abs(p.get_width()) for p in ax.patches) / ax.get_xlim()[1], 0.5,
+                           "the largest bar spans most of its half of the axis")
+        self.assertIn("32 not measured", ax.get_title())
+        plt.close(fig)
+
     def test_many_cases_stay_readable(self):
         rng = np.random.default_rng(1)
         for n in (3, 40, 500):
@@ -210,8 +225,8 @@ class PlotRunsTest(unittest.TestCase):
             self.assertEqual([ax for ax in fig.axes if not ax.axison and ax.get_legend() is None], [],
                              "no empty cell")
             plt.close(fig)
-        # Labels of 50 to 60 characters on one panel: three columns of them were wider than the
-        # figure, and the legend was cut off on both sides.
+        # Labels of 63 characters on one panel: three columns of them were 1.44 times the figure's
+        # width, and the legend was cut off on both sides.
         long_labels = [f"name=xpbd, iterations={k}, substeps={k}, order=gauss-seidel, seed=1" for k in range(4)]
         with unittest.mock.patch.object(plot_runs, "run_labels", lambda runs_: long_labels[:len(runs_)]):
             fig = plot_runs.figure(runs, series=["total_energy"])
