@@ -353,7 +353,8 @@ PartResult decide_part(const Experiment& ex, const PartSpec& p, const ClaimResul
   pr.rule = p.rule->text();
   if (p.requires_) pr.requires_ = p.requires_->text();
   const MeasureScope scope(result.measures);
-  pr.outcome = p.rule->evaluate(scope);
+  const Expression::Checked checked = p.rule->evaluate_checked(scope);
+  pr.outcome = checked.value;
 
   auto inconclusive = [&](std::string why) {
     pr.verdict = Verdict::Inconclusive;
@@ -383,7 +384,13 @@ PartResult decide_part(const Experiment& ex, const PartSpec& p, const ClaimResul
                                       std::isnan(ok) ? ": not measured" : ": false"));
   }
   if (std::isnan(pr.outcome)) {
-    const std::vector<std::string> nan = p.rule->nan_names(scope);
+    // A non-finite value (1/0, log10(0), an overflow) is no measurement: it would decide the
+    // part as ±inf compares, so it makes the part inconclusive, saying where it came from.
+    if (!checked.nonfinite.empty()) return inconclusive("the rule's value is not finite: " + checked.nonfinite);
+    std::vector<std::string> nan = p.rule->nan_names(scope);
+    for (std::string& name : nan)
+      for (const MeasureResult& m : result.measures)
+        if (m.name == name && !m.nonfinite.empty()) name += " (not finite: " + m.nonfinite + ")";
     return inconclusive(nan.empty() ? std::string("the rule evaluates to NaN")
                                     : fmt::format("not measured (NaN): {}", fmt::join(nan, ", ")));
   }
@@ -493,7 +500,11 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
     if (!m.timing.empty()) {
       const auto it = std::find_if(result.timings.begin(), result.timings.end(),
                                    [&](const TimingResult& t) { return t.group == m.timing; });
-      for (size_t r = 0; r < it->seconds_per_step.size(); ++r) mr.trials.push_back(m.value.evaluate(RepeatScope(*it, r, result.measures)));
+      for (size_t r = 0; r < it->seconds_per_step.size(); ++r) {
+        Expression::Checked c = m.value.evaluate_checked(RepeatScope(*it, r, result.measures));
+        if (mr.nonfinite.empty()) mr.nonfinite = std::move(c.nonfinite);
+        mr.trials.push_back(c.value);
+      }
       const bool any_nan = std::any_of(mr.trials.begin(), mr.trials.end(), [](double v) { return std::isnan(v); });
       const MedianInterval mi = median_interval(mr.trials);
       mr.interval = true;
@@ -502,7 +513,9 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
       mr.hi = any_nan ? kNaN : mi.hi;
       mr.coverage = mi.coverage;
     } else if (m.run.empty()) {
-      mr.value = m.value.evaluate(MeasureScope(result.measures));
+      Expression::Checked c = m.value.evaluate_checked(MeasureScope(result.measures));
+      mr.value = c.value;
+      mr.nonfinite = std::move(c.nonfinite);
       const std::vector<std::string> inputs = interval_inputs(m.value, result.measures);
       if (!inputs.empty()) {
         mr.interval = true;
@@ -519,7 +532,11 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
     } else {
       const auto it = std::find_if(result.runs.begin(), result.runs.end(),
                                    [&](const RunResult& r) { return r.name == m.run; });
-      for (const fs::path& file : it->files) mr.trials.push_back(m.value.evaluate(RunScope(file)));
+      for (const fs::path& file : it->files) {
+        Expression::Checked c = m.value.evaluate_checked(RunScope(file));
+        if (mr.nonfinite.empty()) mr.nonfinite = std::move(c.nonfinite);
+        mr.trials.push_back(c.value);
+      }
       mr.value = combine(m.over_trials, mr.trials);
     }
     result.measures.push_back(std::move(mr));

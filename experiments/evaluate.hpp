@@ -72,6 +72,9 @@ struct MeasureResult {
   bool interval = false;
   double lo = 0.0, hi = 0.0;
   double coverage = 0.0;       // of a timing measure's interval (order statistics)
+  // Why the value is NaN when a non-finite step made it so ("`a / b` (column 1) is inf (of 1 /
+  // 0)", from Expression::evaluate_checked, the first trial's or repeat's), "" otherwise.
+  std::string nonfinite;
 };
 
 struct PartResult {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -79,12 +80,13 @@ class TableReader {
     if (!n->is_string()) fail(file_, line_of(*n), prefix_ + key, "must be a string");
     return n->as_string()->get();
   }
-  long integer(const std::string& key, long fallback, long min) const {
+  long integer(const std::string& key, long fallback, long min, long max = std::numeric_limits<long>::max()) const {
     const toml::node* n = node(key);
     if (n == nullptr) return fallback;
     if (!n->is_integer()) fail(file_, line_of(*n), prefix_ + key, "must be an integer");
     const long v = static_cast<long>(n->as_integer()->get());
     if (v < min) fail(file_, line_of(*n), prefix_ + key, fmt::format("{} is below the minimum {}", v, min));
+    if (v > max) fail(file_, line_of(*n), prefix_ + key, fmt::format("{} is above the maximum {}", v, max));
     return v;
   }
   bool boolean(const std::string& key, bool fallback) const {
@@ -320,7 +322,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
   ex.set = top.overrides("set");
   if (const toml::node* q = root.get("quick")) {
     const TableReader quick(as_table(*q, file, "quick"), file, "quick.", {"trials", "set"});
-    ex.quick_trials = static_cast<int>(quick.integer("trials", ex.quick_trials, 1));
+    ex.quick_trials = static_cast<int>(quick.integer("trials", ex.quick_trials, 1, kMaxTrials));
     ex.quick_set = quick.overrides("set");
   }
   if (file.stem().string() != ex.id)
@@ -355,7 +357,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
     run.scenario = r.string("scenario", false);
     run.set = r.overrides("set");
     run.quick_set = r.overrides("quick_set");
-    run.trials = static_cast<int>(r.integer("trials", 1, 1));
+    run.trials = static_cast<int>(r.integer("trials", 1, 1, kMaxTrials));
     if (const toml::node* k = r.node("trial_key"); k != nullptr && k->is_array())
       run.trial_keys = r.strings("trial_key");
     else if (k != nullptr)
@@ -379,7 +381,7 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
     timing.line = r.line();
     timing.name = r.string("name", true);
     timing.runs = r.strings("runs");
-    timing.repeats = static_cast<int>(r.integer("repeats", timing.repeats, kMinTimingRepeats));
+    timing.repeats = static_cast<int>(r.integer("repeats", timing.repeats, kMinTimingRepeats, kMaxTimingRepeats));
     timing.set = r.overrides("set");
     timing.quick_set = r.overrides("quick_set");
     if (timing.runs.empty()) fail(file, timing.line, "timing.runs", "a timing group times at least one run");

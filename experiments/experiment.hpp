@@ -132,6 +132,12 @@ struct TimingSpec {
   int line = 0;
 };
 inline constexpr int kMinTimingRepeats = 7;
+// The most repeats of a timing group and trials of a run a file may ask for: ten times the most
+// any file of claims/ and reproductions/ asks (9 repeats, 100 trials), so that a slip such as
+// 1000000000 is refused (exit 2, the file, key and line) rather than run without end. 1000
+// trials also keep a trial's file name to three digits (name-000 to name-999).
+inline constexpr int kMaxTimingRepeats = 1000;
+inline constexpr int kMaxTrials = 1000;
 
 // A setup value of a reproduction and where it comes from.
 enum class SetupFrom { Paper, Assumed, Derived };

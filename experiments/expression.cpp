@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <limits>
+#include <set>
 #include <stdexcept>
 
 namespace pbdbench::experiments {
@@ -18,6 +20,8 @@ struct Node {
   double number = 0.0;
   std::string text;  // the name, the operator ("-", "not", "+", "and", "<=", ...), the function
   std::vector<std::shared_ptr<const Node>> args;
+  std::size_t begin = 0, end = 0;  // the node's characters in the expression: [begin, end)
+  int depth = 1;                   // levels of the tree from this node down (a leaf is 1)
 };
 
 namespace {
@@ -55,11 +59,35 @@ bool is_reduction_call(const Node& call) {
          call.args[0]->kind == Node::Kind::Name;
 }
 
+// At most `width` characters of `text` around [begin, end), with "..." where it was cut, so that
+// a message about a long expression stays one line.
+std::string excerpt(const std::string& text, std::size_t begin, std::size_t end, std::size_t width = 60) {
+  begin = std::min(begin, text.size());
+  end = std::clamp(end, begin, text.size());
+  if (end - begin > width) return text.substr(begin, width / 2) + "..." + text.substr(end - width / 2, width / 2);
+  const std::size_t room = (width - (end - begin)) / 2;
+  const std::size_t from = begin > room ? begin - room : 0;
+  const std::size_t to = std::min(text.size(), end + room);
+  return (from > 0 ? "..." : "") + text.substr(from, to - from) + (to < text.size() ? "..." : "");
+}
+
+// `s` cut to at most `width` characters, its middle replaced by "...".
+std::string clip(const std::string& s, std::size_t width = 60) {
+  return s.size() <= width ? s : s.substr(0, width / 2) + "..." + s.substr(s.size() - width / 2);
+}
+
+bool is_name_char(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.'; }
+
 class Parser {
  public:
   explicit Parser(const std::string& text) : s_(text) {}
 
   NodePtr parse() {
+    if (s_.size() > kMaxExpressionLength) {
+      pos_ = kMaxExpressionLength;
+      fail("the expression is " + std::to_string(s_.size()) + " characters long; at most " +
+           std::to_string(kMaxExpressionLength) + " are taken");
+    }
     NodePtr n = parse_or();
     skip_space();
     if (pos_ != s_.size()) fail("unexpected '" + s_.substr(pos_, 1) + "'");
@@ -68,9 +96,30 @@ class Parser {
 
  private:
   [[noreturn]] void fail(const std::string& what) const {
-    throw std::invalid_argument("in '" + s_ + "' at column " + std::to_string(pos_ + 1) + ": " +
-                                what);
+    const std::string where = s_.size() <= 80 ? "in '" + s_ + "'"
+                                              : "in '" + excerpt(s_, pos_, pos_ + 1) + "'";
+    throw std::invalid_argument(where + " at column " + std::to_string(pos_ + 1) + ": " + what);
   }
+  [[noreturn]] void too_deep() const {
+    fail("nested more than " + std::to_string(kMaxExpressionDepth) +
+         " levels deep (each parenthesis, call, unary operator and each operator of a chain such as "
+         "a + b + c is a level)");
+  }
+  // One level of the parser's recursion (a parenthesis, a call's arguments, a unary operator, an
+  // exponent): refused beyond kMaxExpressionDepth before the stack is at risk.
+  class Level {
+   public:
+    explicit Level(Parser& p) : p_(p) {
+      if (++p_.depth_ > kMaxExpressionDepth) p_.too_deep();
+    }
+    ~Level() { --p_.depth_; }
+    Level(const Level&) = delete;
+    Level& operator=(const Level&) = delete;
+
+   private:
+    Parser& p_;
+  };
+
   void skip_space() {
     while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
   }
@@ -93,17 +142,25 @@ class Parser {
     pos_ += n;
     return true;
   }
-  static NodePtr binary(const std::string& op, NodePtr a, NodePtr b) {
+  NodePtr binary(const std::string& op, NodePtr a, NodePtr b) {
     auto n = std::make_shared<Node>();
     n->kind = Node::Kind::Binary;
     n->text = op;
+    n->begin = a->begin;
+    n->end = b->end;
+    n->depth = 1 + std::max(a->depth, b->depth);
+    if (n->depth > kMaxExpressionDepth) too_deep();
     n->args = {std::move(a), std::move(b)};
     return n;
   }
-  static NodePtr unary(const std::string& op, NodePtr a) {
+  NodePtr unary(const std::string& op, std::size_t begin, NodePtr a) {
     auto n = std::make_shared<Node>();
     n->kind = Node::Kind::Unary;
     n->text = op;
+    n->begin = begin;
+    n->end = a->end;
+    n->depth = 1 + a->depth;
+    if (n->depth > kMaxExpressionDepth) too_deep();
     n->args = {std::move(a)};
     return n;
   }
@@ -119,7 +176,12 @@ class Parser {
     return n;
   }
   NodePtr parse_not() {
-    if (accept_word("not")) return unary("not", parse_not());
+    skip_space();
+    const std::size_t begin = pos_;
+    if (accept_word("not")) {
+      const Level level(*this);
+      return unary("not", begin, parse_not());
+    }
     return parse_comparison();
   }
   NodePtr parse_comparison() {
@@ -152,55 +214,101 @@ class Parser {
     }
   }
   NodePtr parse_unary() {
-    if (accept("-")) return unary("-", parse_unary());
+    skip_space();
+    const std::size_t begin = pos_;
+    if (accept("-")) {
+      const Level level(*this);
+      return unary("-", begin, parse_unary());
+    }
     return parse_power();
   }
   NodePtr parse_power() {
     NodePtr base = parse_atom();
-    if (accept("^")) return binary("^", base, parse_unary());
+    if (accept("^")) {
+      const Level level(*this);
+      return binary("^", base, parse_unary());
+    }
     return base;
+  }
+  // A decimal number: digits, an optional fraction, an optional exponent. Read here rather than
+  // by strtod, which would also take 0x1p4, inf and nan (and reads to the end of the text).
+  NodePtr parse_number() {
+    const std::size_t begin = pos_;
+    std::size_t p = pos_, digits = 0;
+    auto run = [&] {
+      std::size_t k = 0;
+      while (p < s_.size() && std::isdigit(static_cast<unsigned char>(s_[p]))) ++p, ++k;
+      return k;
+    };
+    digits += run();
+    if (p < s_.size() && s_[p] == '.') {
+      ++p;
+      digits += run();
+    }
+    if (digits == 0) fail("expected a number, a name or '('");
+    if (p < s_.size() && (s_[p] == 'e' || s_[p] == 'E')) {
+      std::size_t q = p + 1;
+      if (q < s_.size() && (s_[q] == '+' || s_[q] == '-')) ++q;
+      if (q < s_.size() && std::isdigit(static_cast<unsigned char>(s_[q]))) {
+        p = q;
+        run();
+      }
+    }
+    if (p < s_.size() && is_name_char(s_[p])) {
+      std::size_t q = p;
+      while (q < s_.size() && is_name_char(s_[q])) ++q;
+      fail("'" + clip(s_.substr(begin, q - begin)) + "' is not a number: numbers are decimal (12, 0.5, 1e-3)" +
+           (s_.compare(begin, 2, "0x") == 0 || s_.compare(begin, 2, "0X") == 0 ? "; hexadecimal is not taken" : ""));
+    }
+    double value = 0.0;
+    const auto [end, ec] = std::from_chars(s_.data() + begin, s_.data() + p, value);
+    if (ec != std::errc() || end != s_.data() + p)
+      fail("'" + clip(s_.substr(begin, p - begin)) + "' is out of the range of a double (about 1e-308 to 1e308)");
+    pos_ = p;
+    auto n = std::make_shared<Node>();
+    n->number = value;
+    n->begin = begin;
+    n->end = p;
+    return n;
   }
   NodePtr parse_atom() {
     skip_space();
     if (pos_ >= s_.size()) fail("expected a number, a name or '('");
     const char c = s_[pos_];
+    const std::size_t begin = pos_;
     if (c == '(') {
+      const Level level(*this);
       ++pos_;
-      NodePtr n = parse_or();
+      NodePtr inner = parse_or();
       if (!accept(")")) fail("expected ')'");
+      auto n = std::make_shared<Node>(*inner);  // the same node, quoted with its parentheses
+      n->begin = begin;
+      n->end = pos_;
       return n;
     }
-    if (std::isdigit(static_cast<unsigned char>(c)) || c == '.') {
-      size_t used = 0;
-      double value = 0.0;
-      try {
-        value = std::stod(s_.substr(pos_), &used);
-      } catch (const std::exception&) {
-        fail("bad number");
-      }
-      pos_ += used;
-      auto n = std::make_shared<Node>();
-      n->number = value;
-      return n;
-    }
+    if (std::isdigit(static_cast<unsigned char>(c)) || c == '.') return parse_number();
     if (std::isalpha(static_cast<unsigned char>(c)) || c == '_') {
-      const size_t start = pos_;
-      while (pos_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[pos_])) ||
-                                  s_[pos_] == '_' || s_[pos_] == '.'))
-        ++pos_;
-      const std::string name = s_.substr(start, pos_ - start);
+      while (pos_ < s_.size() && is_name_char(s_[pos_])) ++pos_;
+      const std::string name = s_.substr(begin, pos_ - begin);
       for (const char* reserved : {"and", "or", "not"})
         if (name == reserved) fail("'" + name + "' where a value was expected");
       auto n = std::make_shared<Node>();
       n->text = name;
+      n->begin = begin;
+      n->end = pos_;
       if (accept("(")) {
+        const Level level(*this);
         n->kind = Node::Kind::Call;
         if (!accept(")")) {
-          do n->args.push_back(parse_or());
-          while (accept(","));
+          do {
+            n->args.push_back(parse_or());
+            n->depth = std::max(n->depth, 1 + n->args.back()->depth);
+            if (n->depth > kMaxExpressionDepth) too_deep();
+          } while (accept(","));
           if (!accept(")")) fail("expected ',' or ')' in the arguments of " + name);
         }
         check_call(*n);
+        n->end = pos_;
       } else {
         n->kind = Node::Kind::Name;
       }
@@ -220,7 +328,7 @@ class Parser {
       std::string known;
       for (const Reduction& r : kReductions) known += std::string(known.empty() ? "" : ", ") + r.name;
       for (const char* f : kNumericFunctions) known += std::string(", ") + f;
-      fail("unknown function '" + call.text + "' (known: " + known + ")");
+      fail("unknown function '" + clip(call.text) + "' (known: " + known + ")");
     }
     const bool variadic = call.text == "min" || call.text == "max";
     if (variadic ? call.args.size() < 2 : call.args.size() != 1)
@@ -229,19 +337,22 @@ class Parser {
 
   std::string s_;
   size_t pos_ = 0;
+  int depth_ = 0;  // levels of recursion now open
 };
 
-void collect(const Node& n, std::vector<std::string>& scalars, std::vector<std::string>& series) {
-  auto add = [](std::vector<std::string>& v, const std::string& s) {
-    if (std::find(v.begin(), v.end(), s) == v.end()) v.push_back(s);
-  };
-  if (n.kind == Node::Kind::Name) add(scalars, n.text);
+// The names in order of first appearance; `seen` keeps the look-up linear in the names.
+struct Names {
+  std::vector<std::string> scalars, series;
+  std::set<std::string> seen_scalars, seen_series;
+};
+void collect(const Node& n, Names& out) {
+  if (n.kind == Node::Kind::Name && out.seen_scalars.insert(n.text).second) out.scalars.push_back(n.text);
   if (n.kind == Node::Kind::Call && is_reduction_call(n)) {
-    add(series, n.args[0]->text);
-    for (size_t i = 1; i < n.args.size(); ++i) collect(*n.args[i], scalars, series);
+    if (out.seen_series.insert(n.args[0]->text).second) out.series.push_back(n.args[0]->text);
+    for (size_t i = 1; i < n.args.size(); ++i) collect(*n.args[i], out);
     return;
   }
-  for (const NodePtr& a : n.args) collect(*a, scalars, series);
+  for (const NodePtr& a : n.args) collect(*a, out);
 }
 
 double reduce(const std::string& fn_in, const std::vector<double>& rows, const std::vector<double>* t,
@@ -305,67 +416,99 @@ double reduce(const std::string& fn_in, const std::vector<double>& rows, const s
   return best;
 }
 
-double eval(const Node& n, const Scope& scope) {
-  switch (n.kind) {
-    case Node::Kind::Number:
-      return n.number;
-    case Node::Kind::Name: {
-      const std::optional<double> v = scope.scalar(n.text);
-      if (!v) throw std::invalid_argument("no value named '" + n.text + "'");
-      return *v;
-    }
-    case Node::Kind::Unary: {
-      const double a = eval(*n.args[0], scope);
-      if (std::isnan(a)) return kNaN;
-      return n.text == "-" ? -a : (a == 0.0 ? 1.0 : 0.0);
-    }
-    case Node::Kind::Binary: {
-      const std::string& op = n.text;
-      const double a = eval(*n.args[0], scope);
-      const double b = eval(*n.args[1], scope);
-      if (op == "and") {
-        if (a == 0.0 || b == 0.0) return 0.0;
-        if (std::isnan(a) || std::isnan(b)) return kNaN;
-        return 1.0;
-      }
-      if (op == "or") {
-        if ((!std::isnan(a) && a != 0.0) || (!std::isnan(b) && b != 0.0)) return 1.0;
-        if (std::isnan(a) || std::isnan(b)) return kNaN;
-        return 0.0;
-      }
-      if (std::isnan(a) || std::isnan(b)) return kNaN;
-      if (op == "+") return a + b;
-      if (op == "-") return a - b;
-      if (op == "*") return a * b;
-      if (op == "/") return a / b;
-      if (op == "^") return std::pow(a, b);
-      if (op == "<") return a < b ? 1.0 : 0.0;
-      if (op == "<=") return a <= b ? 1.0 : 0.0;
-      if (op == ">") return a > b ? 1.0 : 0.0;
-      if (op == ">=") return a >= b ? 1.0 : 0.0;
-      if (op == "==") return a == b ? 1.0 : 0.0;
-      return a != b ? 1.0 : 0.0;  // "!="
-    }
-    case Node::Kind::Call: {
-      if (is_reduction_call(n)) {
-        const std::string& name = n.args[0]->text;
-        const std::vector<double>* rows = scope.series(name);
-        if (rows == nullptr) throw std::invalid_argument("no series named '" + name + "'");
-        const double arg = n.args.size() > 1 ? eval(*n.args[1], scope) : 0.0;
-        return reduce(n.text, *rows, scope.times(), arg, name);
-      }
-      std::vector<double> v;
-      for (const NodePtr& a : n.args) v.push_back(eval(*a, scope));
-      if (std::any_of(v.begin(), v.end(), [](double x) { return std::isnan(x); })) return kNaN;
-      if (n.text == "abs") return std::abs(v[0]);
-      if (n.text == "sqrt") return std::sqrt(v[0]);
-      if (n.text == "log10") return std::log10(v[0]);
-      if (n.text == "min") return *std::min_element(v.begin(), v.end());
-      return *std::max_element(v.begin(), v.end());  // "max"
-    }
-  }
-  return kNaN;
+std::string value_text(double v) {
+  if (std::isnan(v)) return "NaN";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
 }
+
+// One evaluation: the scope, the text (to quote), and the first non-finite value met.
+struct Evaluator {
+  const Scope& scope;
+  const std::string& text;
+  std::string why;
+
+  // A non-finite `v` made by node `n` from finite inputs (`inputs`: "1, 0"), turned into NaN.
+  double nonfinite(const Node& n, double v, const std::string& inputs) {
+    if (why.empty())
+      why = "`" + clip(text.substr(n.begin, n.end - n.begin)) + "` (column " + std::to_string(n.begin + 1) + ") is " +
+            value_text(v) + (inputs.empty() ? "" : " (of " + inputs + ")");
+    return kNaN;
+  }
+
+  double eval(const Node& n) {
+    switch (n.kind) {
+      case Node::Kind::Number:
+        return n.number;
+      case Node::Kind::Name: {
+        const std::optional<double> v = scope.scalar(n.text);
+        if (!v) throw std::invalid_argument("no value named '" + n.text + "'");
+        if (std::isinf(*v)) return nonfinite(n, *v, "");
+        return *v;
+      }
+      case Node::Kind::Unary: {
+        const double a = eval(*n.args[0]);
+        if (std::isnan(a)) return kNaN;
+        return n.text == "-" ? -a : (a == 0.0 ? 1.0 : 0.0);
+      }
+      case Node::Kind::Binary: {
+        const std::string& op = n.text;
+        const double a = eval(*n.args[0]);
+        const double b = eval(*n.args[1]);
+        if (op == "and") {
+          if (a == 0.0 || b == 0.0) return 0.0;
+          if (std::isnan(a) || std::isnan(b)) return kNaN;
+          return 1.0;
+        }
+        if (op == "or") {
+          if ((!std::isnan(a) && a != 0.0) || (!std::isnan(b) && b != 0.0)) return 1.0;
+          if (std::isnan(a) || std::isnan(b)) return kNaN;
+          return 0.0;
+        }
+        if (std::isnan(a) || std::isnan(b)) return kNaN;
+        if (op == "<") return a < b ? 1.0 : 0.0;
+        if (op == "<=") return a <= b ? 1.0 : 0.0;
+        if (op == ">") return a > b ? 1.0 : 0.0;
+        if (op == ">=") return a >= b ? 1.0 : 0.0;
+        if (op == "==") return a == b ? 1.0 : 0.0;
+        if (op == "!=") return a != b ? 1.0 : 0.0;
+        double r = 0.0;
+        if (op == "+") r = a + b;
+        else if (op == "-") r = a - b;
+        else if (op == "*") r = a * b;
+        else if (op == "/") r = a / b;
+        else r = std::pow(a, b);  // "^"
+        if (!std::isfinite(r)) return nonfinite(n, r, value_text(a) + " " + op + " " + value_text(b));
+        return r;
+      }
+      case Node::Kind::Call: {
+        if (is_reduction_call(n)) {
+          const std::string& name = n.args[0]->text;
+          const std::vector<double>* rows = scope.series(name);
+          if (rows == nullptr) throw std::invalid_argument("no series named '" + name + "'");
+          const double arg = n.args.size() > 1 ? eval(*n.args[1]) : 0.0;
+          const double r = reduce(n.text, *rows, scope.times(), arg, name);
+          if (std::isinf(r)) return nonfinite(n, r, "");
+          return r;
+        }
+        std::vector<double> v;
+        for (const NodePtr& a : n.args) v.push_back(eval(*a));
+        if (std::any_of(v.begin(), v.end(), [](double x) { return std::isnan(x); })) return kNaN;
+        double r = 0.0;
+        if (n.text == "abs") r = std::abs(v[0]);
+        else if (n.text == "sqrt") r = std::sqrt(v[0]);
+        else if (n.text == "log10") r = std::log10(v[0]);
+        else if (n.text == "min") r = *std::min_element(v.begin(), v.end());
+        else r = *std::max_element(v.begin(), v.end());  // "max"
+        if (!std::isfinite(r)) return nonfinite(n, r, value_text(v[0]));
+        return r;
+      }
+    }
+    return kNaN;
+  }
+};
 
 }  // namespace
 
@@ -377,18 +520,27 @@ Expression::Expression(Expression&&) noexcept = default;
 Expression& Expression::operator=(Expression&&) noexcept = default;
 
 std::vector<std::string> Expression::scalar_names() const {
-  std::vector<std::string> scalars, series;
-  collect(*root_, scalars, series);
-  return scalars;
+  Names names;
+  collect(*root_, names);
+  return names.scalars;
 }
 
 std::vector<std::string> Expression::series_names() const {
-  std::vector<std::string> scalars, series;
-  collect(*root_, scalars, series);
-  return series;
+  Names names;
+  collect(*root_, names);
+  return names.series;
 }
 
-double Expression::evaluate(const Scope& scope) const { return eval(*root_, scope); }
+double Expression::evaluate(const Scope& scope) const { return evaluate_checked(scope).value; }
+
+Expression::Checked Expression::evaluate_checked(const Scope& scope) const {
+  Evaluator e{scope, text_, {}};
+  Checked out;
+  out.value = e.eval(*root_);
+  // A non-finite step that `and`/`or` made irrelevant (0 and 1/0 is false) is no reason.
+  if (std::isnan(out.value)) out.nonfinite = std::move(e.why);
+  return out;
+}
 
 std::vector<std::string> Expression::nan_names(const Scope& scope) const {
   std::vector<std::string> out;

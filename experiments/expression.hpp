@@ -30,8 +30,22 @@
 //                        interpolated linearly; NaN with fewer than two crossings
 // A reduction skips NaN rows; over no finite row it gives NaN. (max/min with two or more numeric
 // arguments are the functions of numbers.)
+//
+// Numbers are decimal (1, 0.5, .5, 1e-3, 2E+4); 0x10, 1e999 and a number run into a name (2a)
+// are refused.
+//
+// Non-finite values are not measurements: an operation that gives ±inf or NaN from finite
+// operands (1/0, 0/0, log10(0), sqrt(-1), 10^400), a name whose value is ±inf and a reduction
+// that gives ±inf (final(s) of a series that ends at inf) give NaN, so that a rule over them has
+// no verdict rather than the one ±inf would decide; evaluate_checked() says which operation it was.
+//
+// Limits: a text longer than kMaxExpressionLength characters, or nested deeper than
+// kMaxExpressionDepth levels, is refused with the column where the limit was crossed. Parsing,
+// evaluating and freeing the tree recurse over its depth, so a bound on the depth is what keeps
+// every input from exhausting the stack.
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -40,6 +54,17 @@
 #include <vector>
 
 namespace pbdbench::experiments {
+
+// The longest text a measure's value or a rule may have. The longest in claims/ and
+// reproductions/ is 783 characters (xpbd2016_chain_force.toml, a max() of twenty ratios); ten
+// thousand leaves room for any rule a person writes and keeps a refused one's parse instant.
+inline constexpr std::size_t kMaxExpressionLength = 10000;
+
+// The deepest nesting: each parenthesis, call, unary operator (-, not) and each operator of a
+// chain (a + b + c is two levels: the tree is built left to right) counts one level. The deepest
+// in claims/ and reproductions/ is far below it; 200 levels of the recursive parser and evaluator
+// use well under a megabyte of stack, also under AddressSanitizer.
+inline constexpr int kMaxExpressionDepth = 200;
 
 // What a name stands for when an expression is evaluated.
 class Scope {
@@ -72,8 +97,18 @@ class Expression {
   std::vector<std::string> scalar_names() const;
   std::vector<std::string> series_names() const;
 
-  // Evaluates; throws std::invalid_argument naming the name the scope lacks.
+  // Evaluates; throws std::invalid_argument naming the name the scope lacks. A non-finite
+  // value is NaN (see above).
   double evaluate(const Scope& scope) const;
+
+  // As evaluate(), with why the value is NaN when something non-finite made it so: the first
+  // such operation or name, "`a / b` is inf (a = 1, b = 0)"-like text; "" otherwise (a NaN
+  // input, for which nan_names() says which).
+  struct Checked {
+    double value = 0.0;
+    std::string nonfinite;
+  };
+  Checked evaluate_checked(const Scope& scope) const;
 
   // The names whose values are NaN in `scope` (used to say why a rule has no verdict).
   std::vector<std::string> nan_names(const Scope& scope) const;

@@ -113,6 +113,16 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
   EXPECT_EQ(r.parts[1].verdict, Verdict::Contradicted);
   EXPECT_EQ(r.parts[2].verdict, Verdict::Inconclusive);  // a measure it needs is NaN
   EXPECT_NE(r.parts[2].reason.find("not_measured"), std::string::npos) << r.parts[2].reason;
+  // ... because of a 0 / 0 in its expression, which the reason quotes.
+  EXPECT_NE(r.parts[2].reason.find("not_measured (not finite: `(fall > 100) / 0` (column 12) is NaN (of 0 / 0))"),
+            std::string::npos) << r.parts[2].reason;
+  // A rule that divides by zero is inconclusive, not decided by inf > 5.
+  PartSpec divides = ex.parts[1];
+  divides.rule = Expression("fall / 0 > 5");
+  const PartResult by_zero = decide_part(ex, divides, r);
+  EXPECT_EQ(by_zero.verdict, Verdict::Inconclusive);
+  EXPECT_NE(by_zero.reason.find("the rule's value is not finite: `fall / 0` (column 1) is inf (of 1.2"),
+            std::string::npos) << by_zero.reason;
   EXPECT_EQ(r.parts[3].verdict, Verdict::NotTestable);
   EXPECT_EQ(r.parts[3].reason, "no reason to");
   EXPECT_EQ(r.parts[4].verdict, Verdict::Supported);

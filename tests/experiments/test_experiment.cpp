@@ -232,6 +232,32 @@ TEST(Experiment, BadFilesAreRefusedNamingFileLineAndKey) {
   }
 }
 
+// What crashed or ran without end is refused, naming the file, the line, the key and (for a rule)
+// the column.
+TEST(Experiment, RulesBeyondTheLimitsAndEndlessCountsAreRefused) {
+  const std::string deep = std::string(10000, '(') + "drop" + std::string(10000, ')') + " > 0";
+  std::string e = error_of(replace(kGood, "rule = \"drop > 0\"", "rule = \"" + deep + "\""));
+  EXPECT_NE(e.find("S9.9.toml:31: part.rule: in '...((((("), std::string::npos) << e.substr(0, 300);
+  EXPECT_NE(e.find("at column 10001: the expression is 20008 characters long"), std::string::npos) << e.substr(0, 300);
+  std::string chain = "drop > 0";
+  for (int k = 0; k < 300; ++k) chain += " and drop > 0";
+  e = error_of(replace(kGood, "rule = \"drop > 0\"", "rule = \"" + chain + "\""));
+  EXPECT_NE(e.find("S9.9.toml:31: part.rule:"), std::string::npos) << e.substr(0, 300);
+  EXPECT_NE(e.find("nested more than 200 levels deep"), std::string::npos) << e.substr(0, 300);
+  e = error_of(replace(kGood, "value = \"2 * drop\"", "value = \"0x2 * drop\""));
+  EXPECT_NE(e.find("S9.9.toml:24: measure.value: in '0x2 * drop' at column 1: '0x2' is not a number"),
+            std::string::npos) << e;
+  e = error_of(replace(kGood, "trials = 3\n", "trials = 1000000000\n"));
+  EXPECT_NE(e.find("S9.9.toml:14: run.trials: 1000000000 is above the maximum 1000"), std::string::npos) << e;
+  e = error_of(replace(kGood, "[quick]\ntrials = 2", "[quick]\ntrials = 1001"));
+  EXPECT_NE(e.find("S9.9.toml:9: quick.trials: 1001 is above the maximum 1000"), std::string::npos) << e;
+  e = error_of(replace(kGood, "trials = 3\n", "trials = 1e9\n"));
+  EXPECT_NE(e.find("S9.9.toml:14: run.trials: must be an integer"), std::string::npos) << e;
+  e = error_of(replace(kGood, "[[measure]]\nname = \"twice\"",
+                       "[[timing]]\nname = \"t\"\nruns = [\"pbd\"]\nrepeats = 1000000000\n[[measure]]\nname = \"twice\""));
+  EXPECT_NE(e.find("timing.repeats: 1000000000 is above the maximum 1000"), std::string::npos) << e;
+}
+
 TEST(Experiment, ClaimIdsSortAsTheIndex) {
   EXPECT_TRUE(claim_id_less("S1", "S2.1a"));
   EXPECT_TRUE(claim_id_less("S3.1", "S3.1a"));

@@ -134,6 +134,90 @@ TEST(Expression, BadTextIsRefusedWithTheColumn) {
   EXPECT_NE(message("abs(1, 2)").find("takes one argument"), std::string::npos);
 }
 
+std::string refusal(const std::string& text) {
+  try {
+    Expression e(text);
+  } catch (const std::invalid_argument& err) {
+    return err.what();
+  }
+  return "no error";
+}
+
+std::string repeat(const std::string& s, int n) {
+  std::string out;
+  for (int k = 0; k < n; ++k) out += s;
+  return out;
+}
+
+// Inputs that crashed the parser (a stack overflow in its recursion, or in the evaluator's and
+// the tree's destructor's over a chain) are refused at once, with the column, in a short message.
+TEST(Expression, TextsBeyondTheLimitsAreRefusedNotCrashed) {
+  const std::vector<std::string> huge = {
+      repeat("(", 10000) + "1" + repeat(")", 10000),  // 10,000 nested parentheses
+      "1" + repeat(" + 1", 100000),                   // a 100,000-term sum
+      "1" + repeat(" and 1", 1000000),                // a million-term and
+      repeat("-", 1000000) + "1",                     // a million unary operators
+  };
+  for (const std::string& text : huge) {
+    const std::string e = refusal(text);
+    EXPECT_NE(e.find("characters long; at most 10000 are taken"), std::string::npos) << e.substr(0, 300);
+    EXPECT_NE(e.find("at column 10001"), std::string::npos) << e.substr(0, 300);
+    EXPECT_LT(e.size(), 300u);  // an excerpt, not the text
+  }
+  // Within the length, the depth: nesting, chains and unary runs of more than 200 levels.
+  const int over = kMaxExpressionDepth + 1;
+  for (const std::string& text : {repeat("(", over) + "1" + repeat(")", over), "1" + repeat("+1", over),
+                                  "1" + repeat(" and 1", over), repeat("-", over) + "1", repeat("not ", over) + "1",
+                                  repeat("abs(", over) + "1" + repeat(")", over), "2" + repeat("^2", over)}) {
+    const std::string e = refusal(text);
+    EXPECT_NE(e.find("nested more than 200 levels deep"), std::string::npos) << text.substr(0, 40) << ": " << e;
+    EXPECT_NE(e.find("at column "), std::string::npos) << e;
+  }
+  // The deepest allowed is taken and evaluates.
+  const int most = kMaxExpressionDepth;
+  EXPECT_EQ(eval(repeat("(", most) + "1" + repeat(")", most)), 1.0);
+  EXPECT_EQ(eval("0" + repeat("+1", most - 1)), most - 1.0);
+  EXPECT_EQ(eval(repeat("-", most - 1) + "1"), -1.0);
+}
+
+TEST(Expression, NumbersAreDecimalOnly) {
+  EXPECT_DOUBLE_EQ(eval("1.5e3 + .5 + 1. + 2E+1 + 1e-2"), 1521.51);
+  EXPECT_NE(refusal("0x10 > 1").find("hexadecimal is not taken"), std::string::npos) << refusal("0x10 > 1");
+  EXPECT_NE(refusal("0X1p4").find("column 1"), std::string::npos);
+  EXPECT_NE(refusal("2a + 1").find("'2a' is not a number"), std::string::npos) << refusal("2a + 1");
+  EXPECT_NE(refusal("1e999 > 1").find("out of the range of a double"), std::string::npos) << refusal("1e999 > 1");
+  EXPECT_NE(refusal("1 + 1e").find("'1e' is not a number"), std::string::npos) << refusal("1 + 1e");
+  EXPECT_EQ(refusal("inf > 1"), "no error");  // a name, unknown when evaluated: not infinity
+  EXPECT_THROW(eval("inf > 1"), std::invalid_argument);
+}
+
+// ±inf is no measurement: 1/0 > 5 would otherwise hold and decide a part.
+TEST(Expression, NonFiniteValuesAreNaNAndSayWhy) {
+  MapScope s;
+  s.scalars = {{"a", 1.0}, {"zero", 0.0}, {"big", std::numeric_limits<double>::infinity()}};
+  const Expression::Checked c = Expression("a / zero > 5").evaluate_checked(s);
+  EXPECT_TRUE(std::isnan(c.value));
+  EXPECT_EQ(c.nonfinite, "`a / zero` (column 1) is inf (of 1 / 0)");
+  EXPECT_TRUE(std::isnan(eval("1/0 > 5")));
+  EXPECT_TRUE(std::isnan(eval("-1/0 < 5")));
+  EXPECT_EQ(Expression("0/0 == 0").evaluate_checked(s).nonfinite, "`0/0` (column 1) is NaN (of 0 / 0)");
+  EXPECT_NE(Expression("log10(zero) < 1").evaluate_checked(s).nonfinite.find("`log10(zero)` (column 1) is -inf"),
+            std::string::npos);
+  EXPECT_NE(Expression("sqrt(0 - a) < 1").evaluate_checked(s).nonfinite.find("is NaN (of -1)"), std::string::npos);
+  EXPECT_NE(Expression("10^400 > 1").evaluate_checked(s).nonfinite.find("is inf"), std::string::npos);
+  EXPECT_NE(Expression("1 + (big > 2)").evaluate_checked(s).nonfinite.find("`big` (column 6) is inf"),
+            std::string::npos);
+  s.rows["x"] = {0.0, 1.0, std::numeric_limits<double>::infinity()};
+  EXPECT_NE(Expression("final(x) > 1").evaluate_checked(s).nonfinite.find("`final(x)` (column 1) is inf"),
+            std::string::npos);
+  // A non-finite step that `and` makes irrelevant is no reason; a NaN input is not non-finite.
+  const Expression::Checked dropped = Expression("zero > 0 and 1/0 > 5").evaluate_checked(s);
+  EXPECT_EQ(dropped.value, 0.0);
+  EXPECT_EQ(dropped.nonfinite, "");
+  s.scalars["m"] = kNaN;
+  EXPECT_EQ(Expression("m > 1").evaluate_checked(s).nonfinite, "");
+}
+
 TEST(Expression, UnknownNamesAreErrorsWhenEvaluated) {
   MapScope s;
   EXPECT_THROW(eval("missing > 1", s), std::invalid_argument);
