@@ -249,6 +249,18 @@ def bounds(runs, view, pad=0.04):
     return lo - margin, hi + margin
 
 
+def widened(lo, hi, least=1.0 / 3.0):
+    """The box lo..hi with each side at least `least` of the longest, about its centre: a chain
+    hanging straight is a line, and its equal-aspect panel would be a strip of the frame."""
+    lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+    need = least * float(np.max(hi - lo))
+    for k in range(len(lo)):
+        if hi[k] - lo[k] < need:
+            mid = 0.5 * (lo[k] + hi[k])
+            lo[k], hi[k] = mid - 0.5 * need, mid + 0.5 * need
+    return lo, hi
+
+
 def panel_shape(lo, hi, view3d=False):
     """(width, height) in inches of a panel that an equal-aspect drawing of the box lo..hi fills:
     its aspect ratio kept within [1/3, 3] (a very long body gets a strip, not a line)."""
@@ -283,7 +295,7 @@ def layout(runs, vizes, view, view3d, field, norm, cmap, keys, elev=20.0, azim=-
         axes3 = (horizontal, 3 - horizontal - up, up)
         lo, hi = bounds(runs, axes3)
     else:
-        lo, hi = bounds(runs, view)
+        lo, hi = widened(*bounds(runs, view))
     w, h = panel_shape(lo, hi, view3d)
     bar = 0.9 if field else 0.0
     fig = plt.figure(figsize=(w * len(runs) + bar + 0.3, h + 0.9), layout="constrained")
@@ -314,7 +326,7 @@ def layout(runs, vizes, view, view3d, field, norm, cmap, keys, elev=20.0, azim=-
             ax.set_ylabel("xyz"[view[1]] + " (m)")
     if field:
         sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
-        fig.colorbar(sm, ax=fig.axes, shrink=0.8, pad=0.02,
+        fig.colorbar(sm, ax=fig.axes, shrink=0.8, pad=0.02, fraction=min(0.15, 0.35 / fig.get_figwidth()),
                      label=field.replace("_", " ") + (" (strain / area / volume change)" if field == "change" else ""))
     return fig, panels
 

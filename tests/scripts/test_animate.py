@@ -120,6 +120,12 @@ class Animate(unittest.TestCase):
             p.draw(runs[0].frame_time[-1])
         self.assertGreater(animate.drawn_fraction(fig), 0.5, "the panels cover most of the frame")
         plt.close(fig)
+        # A chain hanging straight is a line: its box is widened to a third of its length, and the
+        # panel is shaped like that box, not a strip of a square.
+        lo, hi = animate.widened(np.array([0.0, 0.0]), np.array([0.01, 2.0]))
+        np.testing.assert_allclose(hi - lo, [2.0 / 3.0, 2.0])
+        w, h = animate.panel_shape(lo, hi)
+        self.assertAlmostEqual(w / h, 1.0 / 3.0)
         fig, panels = animate.layout(runs, vizes, view, True, "constraint_error", norm, "viridis", ["solver.iterations"])
         for p in panels:
             p.draw(runs[0].frame_time[-1])
