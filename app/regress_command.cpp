@@ -225,8 +225,7 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
   write_report_h5(outcome.out / "regress.h5", rep);
   out << report_table(rep);
   if (!warnings.empty()) out << "warnings of the runs:\n" << warnings;
-  for (const std::string& l : rep.hash_lines)
-    if (l.find("differ") != std::string::npos) out << "bitwise: " << l << "\n";
+  out << bitwise_text(rep, cmd.bitwise);
   out << fmt::format("-> {}\n", (outcome.out / "regress.md").string());
   return outcome;
 }

@@ -7,6 +7,8 @@
 //   pbdbench regress --against DIR       compare with another run's DIR/regress.json (two builds,
 //                                        two branches) instead of the stored baselines
 //   pbdbench regress --repeat            run every case twice: the bitwise tier (determinism)
+//   pbdbench regress --bitwise           print every case's hash against the stored one (else only
+//                                        differences, in one line when another commit stored them)
 //
 //   pbdbench regress --shard 1/4         only the runs of shard 1/4 (counted from 0; one case a unit), no report
 //   pbdbench regress --merge 4           after the shards: check every run, then compare and report
@@ -39,6 +41,7 @@ struct RegressCommand {
   std::filesystem::path out;        // default: results/regress/<tier>
   bool update = false;
   bool repeat = false;
+  bool bitwise = false;             // print the bitwise tier's line of every case
   bool force = false;               // run again even when current run files exist
   RunControl control;               // tests: a broken solver variant
   int jobs = 0;                     // > 1: the runs in child processes (a shard: 0 is the

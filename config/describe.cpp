@@ -3,6 +3,7 @@
 // part of docs/scenarios.md).
 #include <algorithm>
 #include <filesystem>
+#include <map>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -35,6 +36,25 @@ const SceneKindInfo& kind_or_throw(const std::string& name) {
   if (!close.empty()) message += " (did you mean '" + close + "'?)";
   message += fmt::format("; the kinds are {}", fmt::join(names, ", "));
   throw ConfigError(Source{}, "scene.kind", message);
+}
+
+// The keys of a [[body]] entry, in the order a reader writes them: its placement keys, then its
+// kind's scene keys (each KeySpec's path "body.<key>"). Every key the entry holds is listed.
+std::vector<KeySpec> body_keys(const std::map<std::string, Entry>& body) {
+  std::vector<KeySpec> out = body_placement_keys();
+  const auto kind = body.find("body.kind");
+  if (kind == body.end()) return out;
+  if (const SceneKindInfo* info = detail::find_kind(std::get<std::string>(kind->second.value)))
+    for (KeySpec k : info->keys) {
+      k.path = "body." + k.path.substr(6);
+      if (!detail::find_key(body_placement_keys(), k.path)) out.push_back(std::move(k));
+    }
+  return out;
+}
+
+// "body.2.cells" for the key "body.cells" of entry 2.
+std::string body_key_name(std::size_t index, const std::string& path) {
+  return "body." + std::to_string(index) + path.substr(4);
 }
 
 // A plain-text table: columns padded to their widest cell (at most kMaxColumn characters: a
@@ -144,6 +164,10 @@ std::string describe_config(const Config& config) {
     for (const KeySpec& k : collider_keys())
       if (auto it = config.colliders[i].find(k.path); it != config.colliders[i].end())
         add(k, "collider." + std::to_string(i) + k.path.substr(8), it->second);
+  for (std::size_t i = 0; i < config.bodies.size(); ++i)
+    for (const KeySpec& k : body_keys(config.bodies[i]))
+      if (auto it = config.bodies[i].find(k.path); it != config.bodies[i].end())
+        add(k, body_key_name(i, k.path), it->second);
   return out + text_table(rows);
 }
 
@@ -208,7 +232,10 @@ std::string describe_config(const Config& config, bool all, std::size_t width,
                          0, width);
   std::size_t hidden = 0;
   auto add = [&](const KeySpec& k, const std::string& shown, const Entry& e) {
-    if (!all && !solver_reads(solver, family, pbd_material, k.path)) {
+    // A body's kind keys are read as the scene's own ("body.edge_compliance" as
+    // "scene.edge_compliance").
+    const std::string read_as = k.path.rfind("body.", 0) == 0 ? "scene." + k.path.substr(5) : k.path;
+    if (!all && !solver_reads(solver, family, pbd_material, read_as)) {
       ++hidden;
       return;
     }
@@ -219,7 +246,9 @@ std::string describe_config(const Config& config, bool all, std::size_t width,
       out += head + std::string(width - head.size() - from.size(), ' ') + from + "\n";
     else
       out += wrap(shown + " = " + value, 2, width) + std::string(width > from.size() ? width - from.size() : 0, ' ') + from + "\n";
-    out += wrap(k.doc, 6, width);
+    // A body's kind key that the scene's own keys showed above is documented there.
+    if (read_as == k.path || !config.has(read_as) || detail::find_key(body_placement_keys(), k.path))
+      out += wrap(k.doc, 6, width);
   };
   for (const KeySpec& k : common_keys())
     if (config.has(k.path)) add(k, k.path, config.at(k.path));
@@ -231,6 +260,10 @@ std::string describe_config(const Config& config, bool all, std::size_t width,
     for (const KeySpec& k : collider_keys())
       if (auto it = config.colliders[i].find(k.path); it != config.colliders[i].end())
         add(k, "collider." + std::to_string(i) + k.path.substr(8), it->second);
+  for (std::size_t i = 0; i < config.bodies.size(); ++i)
+    for (const KeySpec& k : body_keys(config.bodies[i]))
+      if (auto it = config.bodies[i].find(k.path); it != config.bodies[i].end())
+        add(k, body_key_name(i, k.path), it->second);
   if (hidden > 0) out += fmt::format("  ({} keys of other solvers hidden)\n", hidden);
   if (family)
     for (const std::string& w : unread_solver_keys(config, *family)) out += wrap("warning: " + w, 2, width);

@@ -247,6 +247,9 @@ Report compare(const Registry& reg, const std::vector<const CaseSpec*>& cases,
   Report rep;
   const BuildInfo& b = build_info();
   const bool same_build = base.compiler == b.compiler && base.cxx_flags == b.cxx_flags && base.build_type == b.build_type;
+  const std::string commit = b.git_commit;
+  rep.hash_same_source = !commit.empty() && base.commit == commit && !commit.ends_with("+dirty");
+  rep.hash_stored_by = base.commit.empty() ? "an unknown build" : base.commit;
   for (size_t k = 0; k < cases.size(); ++k) {
     const CaseSpec& c = *cases[k];
     const CaseResult& r = results[k];
@@ -280,6 +283,8 @@ Report compare(const Registry& reg, const std::vector<const CaseSpec*>& cases,
     } else {
       rep.hash_lines.push_back(fmt::format("{}: {} {}", c.name, r.hash,
                                            h->second == r.hash ? "bit for bit as stored" : "differs from the stored " + h->second));
+      ++rep.hash_compared;
+      if (h->second != r.hash) rep.hash_differences.push_back(rep.hash_lines.back());
     }
   }
   return rep;
@@ -383,6 +388,32 @@ std::string results_json(const std::vector<CaseResult>& results) {
   }
   js << "\n}\n";
   return js.str();
+}
+
+std::string bitwise_text(const Report& rep, bool all) {
+  std::string out;
+  if (all) {
+    for (const std::string& l : rep.hash_lines) out += "bitwise: " + l + "\n";
+    return out;
+  }
+  // A repeated run (--repeat) that changed its bits is a finding whatever the baselines.
+  for (const std::string& l : rep.hash_lines)
+    if (l.find("different bits") != std::string::npos) out += "bitwise: " + l + "\n";
+  if (rep.hash_differences.empty()) return out;
+  if (rep.hash_same_source) {
+    for (const std::string& l : rep.hash_differences) out += "bitwise: " + l + "\n";
+  } else {
+    // A commit is shown by its first 12 hex digits, its "+dirty" in words.
+    std::string by = rep.hash_stored_by;
+    if (by.find_first_not_of("0123456789abcdef+dirty") == std::string::npos)
+      by = by.substr(0, std::min<size_t>(by.find('+'), 12));
+    out += fmt::format(
+        "bitwise: {} of {} cases differ from the hashes stored by {}{}, not this source (changed code may change "
+        "the bits; the metrics above are the comparison; --bitwise lists them)\n",
+        rep.hash_differences.size(), rep.hash_compared, by,
+        rep.hash_stored_by.ends_with("+dirty") ? " with local changes" : "");
+  }
+  return out;
 }
 
 std::string report_table(const Report& rep) {

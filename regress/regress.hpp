@@ -105,13 +105,25 @@ Row compare_value(const MetricSpec& m, const CaseSpec& c, double baseline, doubl
 
 struct Report {
   std::vector<Row> rows;
-  std::vector<std::string> hash_lines;  // the bitwise tier, one line per case
+  std::vector<std::string> hash_lines;  // the bitwise tier, one line per case (regress.md)
   int worse = 0, better = 0, same = 0;
+  // The bitwise tier for the terminal: the cases whose hash differs from the stored one (compared
+  // only when compiler, flags and build type match), and whether the stored hashes come from
+  // this very source (the same commit, no local changes on either side). Only then is a
+  // difference a finding; from another commit, changed code may change the bits.
+  std::vector<std::string> hash_differences;
+  int hash_compared = 0;
+  bool hash_same_source = false;
+  std::string hash_stored_by;  // the commit of the stored hashes
 };
 Report compare(const Registry& registry, const std::vector<const CaseSpec*>& cases,
                const std::vector<CaseResult>& results, const Baseline& baseline);
 
 std::string report_table(const Report& report);     // plain text, for the terminal
+// The bitwise tier for the terminal: every case's line with `all` (--bitwise); else nothing when
+// no hash differs, each differing case when the stored hashes come from this source, and one
+// line saying how many differ and that they were stored by another commit otherwise.
+std::string bitwise_text(const Report& report, bool all);
 std::string report_markdown(const Report& report, const std::string& header);
 std::string results_json(const std::vector<CaseResult>& results);
 // regress.h5: the rows as columns (runfile/regress_file.hpp).

@@ -94,6 +94,32 @@ TEST(Describe, ConfigShowsValuesAndSources) {
   for (const auto& [path, entry] : c.entries) EXPECT_NE(line_of(text, path + " "), "") << path;
 }
 
+// The [[body]] entries: each one's placement and kind keys, with their sources, in both forms.
+TEST(Describe, ConfigShowsTheBodies) {
+  const Config c = load_text(
+      "[scene]\nkind = \"tet_block\"\ncells = [1, 1, 1]\n"
+      "[[body]]\nkind = \"chain\"\nlinks = 3\nposition = [0.0, 1.0, 0.0]\n"
+      "[[body]]\nkind = \"tet_block\"\ncells = [2, 1, 1]\nedge_compliance = 1e-5\n",
+      "b.toml", sets({"solver.name=xpbd"}));
+  ASSERT_EQ(c.bodies.size(), 2u);
+  const std::string table = describe_config(c);
+  EXPECT_TRUE(contains(line_of(table, "body.0.kind "), "b.toml:5")) << table;
+  EXPECT_TRUE(contains(line_of(table, "body.0.links "), "b.toml:6")) << table;
+  EXPECT_TRUE(contains(line_of(table, "body.0.position "), "b.toml:7")) << table;
+  EXPECT_TRUE(contains(line_of(table, "body.0.rotation "), "default")) << table;
+  EXPECT_TRUE(contains(line_of(table, "body.1.cells "), "b.toml:10")) << table;
+  for (std::size_t i = 0; i < c.bodies.size(); ++i)
+    for (const auto& [path, entry] : c.bodies[i])
+      EXPECT_NE(line_of(table, "body." + std::to_string(i) + path.substr(4) + " "), "") << path;
+  const std::string reader = describe_config(c, false, 100, SolverFamily::Xpbd);
+  EXPECT_TRUE(contains(reader, "body.0.links = 3")) << reader;
+  EXPECT_TRUE(contains(reader, "body.1.edge_compliance = 1e-05")) << reader;
+  EXPECT_TRUE(contains(reader, "body.1.cells = [2, 1, 1]")) << reader;
+  // A body's stiffness keys are hidden from xpbd as the scene's are.
+  EXPECT_FALSE(contains(reader, "body.1.edge_stiffness =")) << reader;
+  EXPECT_TRUE(contains(describe_config(c, true, 100, SolverFamily::Xpbd), "body.1.edge_stiffness =")) << reader;
+}
+
 TEST(Describe, ListScenariosFindsTheCatalog) {
   const auto list = list_scenarios();
   std::vector<std::string> names;

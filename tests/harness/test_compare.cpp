@@ -234,6 +234,18 @@ TEST(Compare, ObservablesGapsAndPeriods) {
   EXPECT_NEAR(r.period_run, 1.1, 1e-6);
   EXPECT_NEAR(r.period_reference, 1.0, 1e-6);
   EXPECT_NEAR(r.period_relative_difference, 0.1, 1e-5);
+  EXPECT_NE(compare_summary(r).find("gap 1 N (0.05 relative)"), std::string::npos) << compare_summary(r);
+
+  // A support force of zero in the reference (a scene without pins): no relative gap to print,
+  // and no "nan relative" in its place.
+  Motion unsupported;
+  unsupported.sample = [](double, Sample& s) { s.support_force = Vec3::Zero(); };
+  const CompareRun zero = read_compare_run(write_run(dir / "zero.h5", m, "xpbd", 0.01, 11, 0.1, unsupported));
+  const CompareResult unpinned = compare_runs(zero, zero);
+  ASSERT_TRUE(unpinned.support_force.present);
+  const std::string text = compare_summary(unpinned);
+  EXPECT_NE(text.find("support force: run (0, 0, 0) N, reference (0, 0, 0) N, gap 0 N\n"), std::string::npos) << text;
+  EXPECT_EQ(text.find("nan"), std::string::npos) << text;
 
   // A scene without observables: none present (NaN throughout in both).
   const CompareRun plain = read_compare_run(write_run(dir / "plain.h5", m, "xpbd", 0.01, 11, 0.1));

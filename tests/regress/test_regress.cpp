@@ -261,6 +261,31 @@ TEST(Regress, AStaleVelocityIsCaughtByTheEnergy) {
   EXPECT_TRUE(contains(worse, "energy_change") || contains(worse, "exploded")) << ::testing::PrintToString(worse);
 }
 
+// The bitwise tier on the terminal: silent when the hashes match; each differing case named when
+// the stored hashes come from this source; one line when another commit stored them; every case
+// with --bitwise; a repeated run that changed its bits always.
+TEST(Regress, TheBitwiseTierSpeaksOnlyOfDifferences) {
+  Report rep;
+  rep.hash_lines = {"a: 0000000000000001 bit for bit as stored", "b: 0000000000000002 differs from the stored 0000000000000003",
+                    "c: 0000000000000004 differs from the stored 0000000000000005"};
+  rep.hash_differences = {rep.hash_lines[1], rep.hash_lines[2]};
+  rep.hash_compared = 3;
+  rep.hash_stored_by = "e2ebcc1e15083f6816184c41dc36c0b20dd8e5e7+dirty";
+  EXPECT_EQ(bitwise_text(rep, false),
+            "bitwise: 2 of 3 cases differ from the hashes stored by e2ebcc1e1508 with local changes, not this "
+            "source (changed code may change the bits; the metrics above are the comparison; --bitwise lists them)\n");
+  EXPECT_EQ(bitwise_text(rep, true), "bitwise: " + rep.hash_lines[0] + "\nbitwise: " + rep.hash_lines[1] +
+                                         "\nbitwise: " + rep.hash_lines[2] + "\n");
+  rep.hash_same_source = true;
+  EXPECT_EQ(bitwise_text(rep, false), "bitwise: " + rep.hash_lines[1] + "\nbitwise: " + rep.hash_lines[2] + "\n");
+  Report same;
+  same.hash_lines = {rep.hash_lines[0]};
+  same.hash_compared = 1;
+  EXPECT_EQ(bitwise_text(same, false), "");
+  same.hash_lines.push_back("a: run twice, different bits: 0000000000000001 then 0000000000000006");
+  EXPECT_EQ(bitwise_text(same, false), "bitwise: " + same.hash_lines[1] + "\n");
+}
+
 TEST(Regress, BaselinesRoundTripAndTheHashIsDeterministic) {
   const Registry reg = load_registry(registry_file());
   const CaseSpec& c = reg.cases.front();
@@ -280,6 +305,11 @@ TEST(Regress, BaselinesRoundTripAndTheHashIsDeterministic) {
   const Baseline json = read_baseline(dir / "regress.json");
   EXPECT_EQ(json.hashes.at(c.name), a.hash);
   EXPECT_EQ(compare(reg, {&c}, {a}, json).worse, 0);
+  // Stored by this build: compared, and nothing to say.
+  const Report rep = compare(reg, {&c}, {a}, json);
+  EXPECT_EQ(rep.hash_compared, 1);
+  EXPECT_TRUE(rep.hash_differences.empty());
+  EXPECT_EQ(bitwise_text(rep, false), "");
 }
 
 }  // namespace
