@@ -75,6 +75,11 @@ int submit_to_slurm(const std::string& command, const ArrayOptions& o, const fs:
   std::sort(shards_with_work.begin(), shards_with_work.end());
   shards_with_work.erase(std::unique(shards_with_work.begin(), shards_with_work.end()), shards_with_work.end());
   const std::size_t runs = shard.size();
+  // The folder is checked first, named by what set it, before anything is planned into it.
+  slurm::check_script_value(run_files.string(), command == "sweep"     ? "the sweep's folder (--out, else the sweep file's name)"
+                                                : command == "regress" ? "the regression's folder (--out)"
+                                                                       : "the run files' folder (--runs, --out)");
+  slurm::check_script_value(fs::current_path().string(), "the working folder (where the jobs run)");
   const slurm::SiteSettings site = slurm::site_settings(o.slurm_options, o.slurm_template);
   slurm::Jobs jobs;
   jobs.command = command;

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -31,32 +32,75 @@ namespace {
 using config::ConfigError;
 using config::Source;
 
-// The options pbdbench writes itself: a site may not set them.
-bool ours(const std::string& option) {
-  for (const char* o : {"--array", "--output", "--error", "--dependency", "--parsable", "--wrap", "--chdir"})
-    if (option == o || option.rfind(std::string(o) + "=", 0) == 0) return true;
-  for (const char* o : {"-a", "-o", "-e", "-d", "-D"})
-    if (option == o || (option.rfind(o, 0) == 0 && option.size() > 2 && option[1] != '-')) return true;
-  return false;
+// sbatch reads its options with getopt_long: a long option may be spelled by any prefix of its
+// name that no other option shares (--out=x is --output=x, --dep=... is --dependency=...), and
+// short options may be grouped (-Ho x is -H -o x). Each word a site gives is therefore read as
+// sbatch reads it before it is compared with the options pbdbench writes itself.
+
+// The short options of sbatch that take no argument: a group goes on after them. Any other letter
+// takes the rest of the word (or the next word) as its argument, or is refused by sbatch.
+constexpr std::string_view kShortFlags = "hHIkOQsuvVW";
+
+// The options pbdbench writes itself, long and short: a site may not set them in any spelling.
+// (--workdir and -P: older names of --chdir and --dependency.)
+struct Owned {
+  const char* name;
+  char letter;
+};
+constexpr Owned kOwned[] = {{"--array", 'a'},     {"--output", 'o'},   {"--error", 'e'},
+                            {"--dependency", 'd'}, {"--parsable", 0},   {"--wrap", 0},
+                            {"--chdir", 'D'},      {"--workdir", 0},    {"", 'P'}};
+
+// The long option `word` spells, among `names` ("--out=x" -> "--output"), or "": the name before
+// any '=' equal to one of them, or a prefix of one with at least one letter after the dashes.
+std::string long_option(const std::string& word, std::initializer_list<std::string_view> names) {
+  if (word.rfind("--", 0) != 0) return "";
+  const std::string name = word.substr(0, word.find('='));
+  if (name.size() < 3) return "";
+  for (std::string_view n : names)
+    if (n.size() >= name.size() && n.substr(0, name.size()) == name) return std::string(n);
+  return "";
 }
 
-bool sets(const std::vector<std::string>& directives, const char* long_name, const char* short_name) {
+// The short options of a group ("-Hc4" -> "Hc"): the flags, then the first letter that takes an
+// argument (the rest of the word is its value).
+std::string short_options(const std::string& word) {
+  if (word.size() < 2 || word[0] != '-' || word[1] == '-') return "";
+  std::string letters;
+  for (size_t k = 1; k < word.size(); ++k) {
+    letters += word[k];
+    if (kShortFlags.find(word[k]) == std::string_view::npos) break;
+  }
+  return letters;
+}
+
+// The option pbdbench writes itself that `word` spells, as its long name ("" when none).
+std::string ours(const std::string& word) {
+  for (const Owned& o : kOwned)
+    if (*o.name != '\0' && !long_option(word, {o.name}).empty()) return o.name;
+  for (char c : short_options(word))
+    for (const Owned& o : kOwned)
+      if (o.letter == c) return std::string("-") + c + (*o.name != '\0' ? std::string(" (") + o.name + ")" : "");
+  return "";
+}
+
+bool sets(const std::vector<std::string>& directives, const char* long_name, char letter) {
   for (const std::string& d : directives) {
-    const std::string word = d.substr(0, d.find_first_of(" ="));
-    if (word == long_name || word == short_name || (d.rfind(short_name, 0) == 0 && d.size() > 2 && d[1] != '-'))
-      return true;
+    const std::string word = d.substr(0, d.find(' '));
+    if (!long_option(word, {long_name}).empty() || short_options(word).find(letter) != std::string::npos) return true;
   }
   return false;
 }
 
 void check_directive(const std::string& directive, const Source& where) {
-  if (directive.empty() || directive[0] != '-')
-    throw ConfigError(where, "", "'" + directive + "' is not an sbatch option (they start with -)");
+  if (directive.empty() || directive[0] != '-' || directive == "-" || directive.rfind("--", 0) == 0 && directive.size() == 2)
+    throw ConfigError(where, "", "'" + directive + "' is not an sbatch option (they start with - and name one)");
+  check_script_value(directive, where.file);
   const std::string word = directive.substr(0, directive.find(' '));
-  if (ours(word))
+  if (const std::string owned = ours(word); !owned.empty())
     throw ConfigError(where, "",
-                      "'" + word + "' is set by pbdbench itself (the array, the logs beside the results, the "
-                      "merge's dependency, the working folder); leave it out");
+                      "'" + word + "' is " + owned + " to sbatch, which pbdbench sets itself (the array, the logs "
+                      "beside the results, the merge's dependency, the working folder); leave it out");
 }
 
 std::vector<std::string> words(const std::string& text) {
@@ -64,6 +108,41 @@ std::vector<std::string> words(const std::string& text) {
   std::vector<std::string> out;
   for (std::string w; in >> w;) out.push_back(w);
   return out;
+}
+
+// A value's control characters written out: "x\ntouch y" for a newline.
+std::string escaped(const std::string& value) {
+  std::string out;
+  for (unsigned char c : value) {
+    if (c == '\n') out += "\\n";
+    else if (c == '\t') out += "\\t";
+    else if (c == '\r') out += "\\r";
+    else if (c < 0x20 || c == 0x7f) out += fmt::format("\\x{:02x}", static_cast<unsigned>(c));
+    else out += static_cast<char>(c);
+  }
+  return out;
+}
+
+// The logs' folder as a file name pattern of --output: '%' starts a pattern (%A, %a, %j), "%%" is
+// a '%' of the name.
+std::string log_pattern(const fs::path& dir) {
+  std::string out;
+  for (char c : dir.string()) out += c == '%' ? std::string("%%") : std::string(1, c);
+  return out;
+}
+
+// Every value that goes into the scripts, before any is written.
+void check_jobs(const Jobs& jobs) {
+  check_script_value(jobs.command, "the command's name");
+  check_script_value(jobs.dir.string(), "the folder of the run files and the Slurm logs");
+  check_script_value(jobs.workdir.string(), "the working folder (where the jobs run)");
+  check_script_value(jobs.executable.string(), "the pbdbench executable's path");
+  for (size_t k = 0; k < jobs.args.size(); ++k)
+    check_script_value(jobs.args[k], fmt::format("argument {} of the command line", k + 1));
+  for (const auto& [name, value] : jobs.environment) {
+    check_script_value(name, "an environment variable's name");
+    check_script_value(value, "$" + name);
+  }
 }
 
 // `what`: comment lines saying what the job does.
@@ -172,8 +251,11 @@ SiteSettings site_settings(const std::vector<std::string>& options, const fs::pa
   auto add_words = [&](const std::vector<std::string>& ws, const Source& where) {
     for (size_t k = 0; k < ws.size(); ++k) {
       std::string d = ws[k];
-      // "-p short": a short option's value may be the next word.
-      if (d.size() == 2 && d[0] == '-' && d[1] != '-' && k + 1 < ws.size() && ws[k + 1][0] != '-') d += " " + ws[++k];
+      // "-p short", "-Hp short": a short option's value may be the next word.
+      const std::string letters = short_options(d);
+      if (!letters.empty() && letters.size() + 1 == d.size() && kShortFlags.find(letters.back()) == std::string_view::npos &&
+          k + 1 < ws.size() && ws[k + 1][0] != '-')
+        d += " " + ws[++k];
       check_directive(d, where);
       site.directives.push_back(d);
     }
@@ -201,34 +283,39 @@ SiteSettings site_settings(const std::vector<std::string>& options, const fs::pa
 }
 
 std::string array_script(const Jobs& jobs, const SiteSettings& site) {
+  check_jobs(jobs);
   std::string s = header(jobs, fmt::format("# The runs as a job array of {} tasks: task i makes shard i (`--shard i/{}`) with the\n"
                                            "# cores of its allocation; {}.merge.sbatch merges them.\n",
                                            jobs.shards, jobs.shards, jobs.command));
   s += fmt::format("#SBATCH --job-name=pbdbench-{}\n", jobs.command);
   s += fmt::format("#SBATCH --array=0-{}\n", jobs.shards - 1);
-  if (!sets(site.directives, "--ntasks", "-n")) s += "#SBATCH --ntasks=1\n";
-  if (!sets(site.directives, "--cpus-per-task", "-c")) s += "#SBATCH --cpus-per-task=1\n";
-  s += "#SBATCH --chdir=" + jobs.workdir.string() + "\n";
-  s += "#SBATCH --output=" + (jobs.dir / (jobs.command + "-%A_%a.log")).string() + "\n";
+  if (!sets(site.directives, "--ntasks", 'n')) s += "#SBATCH --ntasks=1\n";
+  if (!sets(site.directives, "--cpus-per-task", 'c')) s += "#SBATCH --cpus-per-task=1\n";
+  s += "#SBATCH --chdir=" + sbatch_quote(jobs.workdir.string()) + "\n";
+  s += "#SBATCH --output=" + sbatch_quote(log_pattern(jobs.dir) + "/" + jobs.command + "-%A_%a.log") + "\n";
   for (const std::string& d : site.directives) s += "#SBATCH " + d + "\n";
   return s + body(jobs, site, fmt::format("--shard \"${{SLURM_ARRAY_TASK_ID}}/{}\"", jobs.shards));
 }
 
 std::string merge_script(const Jobs& jobs, const SiteSettings& site) {
+  check_jobs(jobs);
   std::string s = header(jobs, fmt::format("# The merge of the {} shards of {}.array.sbatch: it checks that every run is finished\n"
                                            "# (else it fails, naming the shards and how to resubmit them) and writes the report.\n"
                                            "# It makes no run itself.\n",
                                            jobs.shards, jobs.command));
   s += fmt::format("#SBATCH --job-name=pbdbench-{}-merge\n", jobs.command);
   s += "#SBATCH --ntasks=1\n#SBATCH --cpus-per-task=1\n";
-  s += "#SBATCH --chdir=" + jobs.workdir.string() + "\n";
-  s += "#SBATCH --output=" + (jobs.dir / (jobs.command + "-merge-%j.log")).string() + "\n";
+  s += "#SBATCH --chdir=" + sbatch_quote(jobs.workdir.string()) + "\n";
+  s += "#SBATCH --output=" + sbatch_quote(log_pattern(jobs.dir) + "/" + jobs.command + "-merge-%j.log") + "\n";
   for (const std::string& d : site.directives)
-    if (!sets({d}, "--cpus-per-task", "-c") && !sets({d}, "--ntasks", "-n")) s += "#SBATCH " + d + "\n";
+    if (!sets({d}, "--cpus-per-task", 'c') && !sets({d}, "--ntasks", 'n')) s += "#SBATCH " + d + "\n";
   return s + body(jobs, site, fmt::format("--merge {}", jobs.shards));
 }
 
 ScriptFiles write_scripts(const Jobs& jobs, const SiteSettings& site, const std::vector<std::string>& submit_command) {
+  check_jobs(jobs);
+  for (size_t k = 0; k < submit_command.size(); ++k)
+    check_script_value(submit_command[k], fmt::format("argument {} of the command line", k));
   fs::create_directories(jobs.dir);
   ScriptFiles files{jobs.dir / (jobs.command + ".array.sbatch"), jobs.dir / (jobs.command + ".merge.sbatch"),
                     jobs.dir / "submit.sh"};
@@ -281,6 +368,32 @@ std::vector<std::string> strip_slurm_options(const std::vector<std::string>& arg
     if (!dropped) out.push_back(a);
   }
   return out;
+}
+
+void check_script_value(const std::string& value, const std::string& what) {
+  for (size_t k = 0; k < value.size(); ++k) {
+    const unsigned char c = static_cast<unsigned char>(value[k]);
+    if (c >= 0x20 && c != 0x7f) continue;
+    const std::string which = c == '\n' ? "a newline" : c == '\r' ? "a carriage return" : c == '\t' ? "a tab"
+                                                      : fmt::format("the control character \\x{:02x}", static_cast<unsigned>(c));
+    throw ConfigError(Source{what, 0}, "",
+                      fmt::format("'{}' holds {} (at byte {}): a value that goes into a Slurm job script may hold no "
+                                  "newline or other control character (a shell would read what follows it as a "
+                                  "command); nothing was written",
+                                  escaped(value), which, k));
+  }
+}
+
+std::string sbatch_quote(const std::string& text) {
+  if (!text.empty() && text.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"
+                                              "_-./=:,+@%") == std::string::npos)
+    return text;
+  std::string out = "\"";
+  for (char c : text) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
 }
 
 std::string shell_quote(const std::string& text) {

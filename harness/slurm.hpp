@@ -39,7 +39,9 @@ struct SiteSettings {
 // none): its #SBATCH lines are directives, its other lines that are not blank or comments are
 // setup. Throws config::ConfigError (bad input, exit 2) naming the option, or the template's file
 // and line: a word that is not an option, an option pbdbench sets itself (--array, --output,
-// --error, --dependency, --parsable, --wrap, --chdir), or a template that cannot be read.
+// --error, --dependency, --parsable, --wrap, --chdir, and the older --workdir and -P) in any
+// spelling sbatch accepts (an unambiguous prefix, --out=x; a short option, alone or in a group,
+// -Ho x), a control character, or a template that cannot be read.
 SiteSettings site_settings(const std::vector<std::string>& options, const std::filesystem::path& template_file);
 
 // Two job scripts of one command.
@@ -79,6 +81,18 @@ Submitted submit(const ScriptFiles& files, const std::vector<int>& shards);
 std::vector<std::string> strip_slurm_options(const std::vector<std::string>& args);
 
 // `text` quoted for bash ('...', a quote inside as '\''); bare when it is only safe characters.
+// Single quotes keep every character but a newline's meaning in a comment, hence the next.
 std::string shell_quote(const std::string& text);
+
+// Throws config::ConfigError (bad input, exit 2) naming `what` when `value` holds a newline or
+// another control character (below 0x20, or 0x7f). Every value written into a job script passes
+// here first (array_script, merge_script and write_scripts check them all): quoted for bash, a
+// newline is still the end of a comment line, and sbatch reads #SBATCH lines one line at a time.
+void check_script_value(const std::string& value, const std::string& what);
+
+// `text` as one argument of an #SBATCH line: sbatch splits those lines at blanks, ends them at an
+// unquoted '#', and takes '\' as an escape inside quotes as well, so it is written "..." with '"'
+// and '\' escaped by a '\'; bare when it is only safe characters.
+std::string sbatch_quote(const std::string& text);
 
 }  // namespace pbdbench::slurm

@@ -26,6 +26,68 @@ def expand(listing):
     return out
 
 
+def sbatch_argument(line):
+    """The arguments of one #SBATCH line's text, split as sbatch splits them (src/sbatch/opt.c,
+    _get_argument): at blanks outside quotes ('...' or "..."), a backslash escaping the next
+    character anywhere, an unquoted '#' ending the line."""
+    args, i, n = [], 0, len(line)
+    while True:
+        while i < n and line[i].isspace():
+            i += 1
+        if i >= n:
+            return args
+        arg, quote, escape, started = "", None, False, False
+        while i < n and (quote or not line[i].isspace()):
+            c = line[i]
+            if escape:
+                escape = False
+            elif c == "\\":
+                escape, i = True, i + 1
+                continue
+            elif quote:
+                if c == quote:
+                    quote, i = None, i + 1
+                    continue
+            elif c in "\"'":
+                quote, i, started = c, i + 1, True
+                continue
+            elif c == "#":
+                i = n
+                break
+            arg += c
+            started = True
+            i += 1
+        if quote:
+            raise SystemExit(f"sbatch: unmatched {quote} in [{line}]")
+        if started:
+            args.append(arg)
+
+
+def script_arguments(text):
+    """The sbatch arguments of a script's #SBATCH lines, read until its first command."""
+    args = []
+    for line in text.split("\n"):
+        if line.startswith("#SBATCH"):
+            args.extend(sbatch_argument(line[len("#SBATCH"):]))
+        elif line.strip() and not line.strip().startswith("#"):
+            break
+    return args
+
+
+def expand_pattern(pattern, job, task):
+    """A file name pattern of --output: %A, %a, %j, and %% for a '%'."""
+    out, k = "", 0
+    while k < len(pattern):
+        if pattern[k] == "%" and k + 1 < len(pattern):
+            c = pattern[k + 1]
+            out += {"A": str(job), "a": str(task), "j": str(job), "%": "%"}.get(c, "%" + c)
+            k += 2
+        else:
+            out += pattern[k]
+            k += 1
+    return out
+
+
 def main():
     state = os.environ["FAKE_SBATCH_DIR"]
     args = sys.argv[1:]
@@ -38,10 +100,10 @@ def main():
     directives = {}
     with open(script) as f:
         text = f.read()
-    for line in text.splitlines():
-        m = re.match(r"#SBATCH\s+--([a-z-]+)=(.*)", line)
+    for a in script_arguments(text):
+        m = re.match(r"--([a-z-]+)=(.*)", a, re.S)
         if m:
-            directives[m.group(1)] = m.group(2).strip()
+            directives[m.group(1)] = m.group(2)
     counter = os.path.join(state, "next_id")
     job = int(open(counter).read()) if os.path.exists(counter) else 100
     with open(counter, "w") as f:
@@ -57,7 +119,7 @@ def main():
             record["tasks"][str(task)] = "skipped"
             continue
         out = directives.get("output", os.path.join(cwd, f"slurm-{job}.out"))
-        out = out.replace("%A", str(job)).replace("%a", str(task)).replace("%j", str(job))
+        out = expand_pattern(out, job, task)
         task_env = dict(env)
         if task is not None:
             task_env.update(SLURM_ARRAY_JOB_ID=str(job), SLURM_ARRAY_TASK_ID=str(task))

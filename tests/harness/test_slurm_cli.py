@@ -238,7 +238,7 @@ class SlurmCliTest(unittest.TestCase):
         args = ["paper", "--experiments", "exp", "--runs", "runs", "--no-plots"]
         r = pbdbench(*args, "--slurm", "2", "--slurm-opt", "--array=0-9", cwd=self.dir, env=self.env)
         self.assertEqual(r.returncode, 2)
-        self.assertIn("set by pbdbench itself", r.stderr)
+        self.assertIn("which pbdbench sets itself", r.stderr)
         r = pbdbench(*args, "--shard", "0/2", "--merge", "2", cwd=self.dir)
         self.assertEqual(r.returncode, 2)
         self.assertIn("give one of --shard, --merge and --slurm", r.stderr)
