@@ -39,6 +39,19 @@ double thread_cpu_seconds() {
 
 }  // namespace
 
+bool elastic_energy_resolved(const Model& model, double h) {
+  // FEM elements: their stiffness is a matrix (Lame parameters, a compliance matrix per element)
+  // that this rule does not read.
+  if (!(h > 0.0) || !model.elements.empty()) return false;
+  const std::vector<double> sums = pbd_inverse_mass_sums(model);
+  for (std::size_t j = 0; j < model.constraints.size(); ++j) {
+    const Constraint& c = model.constraints[j];
+    if (is_fem_kind(c.kind)) return false;
+    if (c.compliance > 0.0 && !(c.compliance / (h * h) >= sums[j])) return false;
+  }
+  return true;
+}
+
 void check_solver_names(const config::Config& config) {
   auto source_of = [&config](const std::string& key) {
     const config::Source& s = config.at(key).source;
@@ -178,10 +191,14 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   for (const Attachment& a : model.attachments) energy_sources = energy_sources || a.motion >= 0;
   for (const SphereCollider& sp : model.spheres) energy_sources = energy_sources || sp.motion >= 0;
   for (const MeshCollider& mc : model.meshes) energy_sources = energy_sources || mc.motion >= 0;
-  HealthMonitor health(model, state, sample, outcome.steps_planned, energy_sources, run.dt);
+  HealthMonitor health(model, state, sample,
+                       HealthRun{outcome.steps_planned, energy_sources, run.dt,
+                                 baseline.elastic_defined && elastic_energy_resolved(model, run.dt / solver_opts.substeps)});
   // Every way out records the warnings seen so far.
   auto record_warnings = [&] {
     for (const RunWarning& w : health.warnings()) outcome.warnings.push_back(w.line());
+    outcome.health_margins = health.margins();
+    outcome.health_whole_energy = health.whole_energy();
     writer.set_warnings(outcome.warnings);
   };
 

@@ -50,6 +50,9 @@ struct RunOutcome {
   // What a reader would call a failure though no limit was crossed (metrics/health.hpp), one
   // line each; also in the run file's "warnings" attribute.
   std::vector<std::string> warnings;
+  // How close the run came to each detector's threshold (metrics/health.hpp HealthMonitor::margins).
+  std::vector<HealthMargin> health_margins;
+  bool health_whole_energy = false;  // energy_gain watched the whole energy (else the motion's)
 };
 
 struct RunControl {
@@ -75,6 +78,13 @@ struct RunControl {
 // key, with the file and line (or --set) that set it. run_config calls it; whatever validates
 // runs before starting any (sweeps, experiments, the regression) calls it too.
 void check_solver_names(const config::Config& config);
+
+// Whether substeps of h seconds resolve the model's material, so that its elastic energy
+// C^2 / 2 alpha is the material's rather than an unconverged iteration's residual: every compliant
+// constraint has alpha / h^2 >= its generalised inverse mass sum at rest (pbd_inverse_mass_sums),
+// and there are no FEM elements (their stiffness is a matrix this rule does not read). The run
+// health watches the whole energy only there (metrics/health.hpp energy_gain).
+bool elastic_energy_resolved(const Model& model, double h);
 
 // Runs `config` and writes `out` (its directory is created). Throws config::ConfigError when the
 // scene cannot be built or the planned run does not fit the machine (before any file is

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "metrics/health.hpp"
 #include "runfile/run_file.hpp"
 #include "solver_api/solver.hpp"
 
@@ -110,6 +111,18 @@ std::string stops_text(const RunFileData& d) {
   return out + fmt::format(" of {} step{}", s->size() - 1, s->size() == 2 ? "" : "s");
 }
 
+// What the warnings name, in words: "a link stretched beyond twice its rest length
+// (overstretched), particles left the scene's region (left_region)".
+std::string symptoms_text(const std::vector<std::string>& warnings) {
+  std::string out;
+  for (const std::string& w : warnings) {
+    const std::string code = w.substr(0, w.find(' '));
+    const std::string symptom = symptom_of(code);
+    out += (out.empty() ? "" : ", ") + (symptom.empty() ? code : symptom + " (" + code + ")");
+  }
+  return out;
+}
+
 std::string number(double v) {
   if (std::isnan(v)) return "-";
   return fmt::format("{:.3g}", v);
@@ -135,7 +148,10 @@ std::string summary_table(const std::vector<SummaryEntry>& entries) {
       row.push_back(status_text(d));
       row.push_back(steps_text(d));
       for (const Column& c : columns()) row.push_back(number(c.value(d)));
-      for (const std::string& w : d.warnings()) notes += "  " + e.label + ": WARNING " + w + "\n";
+      if (const std::vector<std::string> warnings = d.warnings(); !warnings.empty()) {
+        notes += "  " + e.label + ": seen: " + symptoms_text(warnings) + "\n";
+        for (const std::string& w : warnings) notes += "  " + e.label + ": WARNING " + w + "\n";
+      }
       if (const std::string why = stops_text(d); !why.empty()) stops += "  " + e.label + ": " + why + "\n";
     } catch (const std::exception& ex) {
       row.push_back("unreadable");
@@ -168,8 +184,8 @@ std::string summary_table(const std::vector<SummaryEntry>& entries) {
   }
   if (!stops.empty()) out += "Why the steps stopped (stop_reason, solver_api/solver.hpp):\n" + stops;
   if (!notes.empty())
-    out += "!N: N warnings (metrics/health.hpp): what a reader would call a failure though no "
-           "explosion limit was crossed\n" + notes;
+    out += "!N: N warnings (metrics/health.hpp, docs/failures.md): the failures a practitioner would "
+           "see, named by their symptoms, though no explosion limit was crossed\n" + notes;
   return out;
 }
 

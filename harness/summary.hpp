@@ -15,7 +15,9 @@ struct SummaryEntry {
 
 // One row per entry: status, steps, constraint error (final and peak max, final RMS), volume
 // drift, energy change, peak penetration, solver milliseconds per step; a status "complete !2"
-// has 2 warnings (metrics/health.hpp), listed under the table, after why each run's steps stopped
+// has 2 warnings (metrics/health.hpp), listed under the table after a line naming what they saw
+// ("run: seen: a link stretched beyond twice its rest length (overstretched)"; docs/failures.md),
+// after why each run's steps stopped
 // (its stop_reason series counted by reason: "488 converged, 12 iteration_limit (not trusted) of
 // 500 steps"). Unreadable files get a row saying so.
 std::string summary_table(const std::vector<SummaryEntry>& entries);

@@ -19,9 +19,18 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-double total_tet_volume(const Model& model, const Points& x) {
+// The sum of the tets' signed volumes; `inverted` (when given) gets the number of tets whose
+// signed volume is negative (Model::tets are positively oriented at rest: such a tet has turned
+// inside out).
+double total_tet_volume(const Model& model, const Points& x, int* inverted = nullptr) {
   double v = 0.0;
-  for (const auto& t : model.tets) v += tet_signed_volume(x.row(t[0]), x.row(t[1]), x.row(t[2]), x.row(t[3]));
+  int turned = 0;
+  for (const auto& t : model.tets) {
+    const double vt = tet_signed_volume(x.row(t[0]), x.row(t[1]), x.row(t[2]), x.row(t[3]));
+    v += vt;
+    turned += vt < 0.0;
+  }
+  if (inverted != nullptr) *inverted = turned;
   return v;
 }
 
@@ -57,9 +66,11 @@ struct ParticleScan {
   double speed2_max = 0.0;     // max_i |v_i|^2 over every particle (meaningful where finite)
   double lowest = kNaN;        // min over dynamic particles of up . x_i (NaN: none)
   bool dynamic_finite = true;  // every dynamic particle's position finite
+  double away2_max = 0.0;      // max over finite dynamic particles of |x_i - origin|^2
 };
 
-ParticleScan scan_particles(const Model& model, const Points& x, const Points& v, const Vec3& up) {
+ParticleScan scan_particles(const Model& model, const Points& x, const Points& v, const Vec3& up,
+                            const Vec3& origin = Vec3::Zero()) {
   ParticleScan out;
   const int n = model.particle_count();
   const double* w_of = model.inv_mass.data();
@@ -87,6 +98,7 @@ ParticleScan scan_particles(const Model& model, const Points& x, const Points& v
     }
     const double h = up.dot(xi);
     if (std::isnan(out.lowest) || h < out.lowest) out.lowest = h;
+    out.away2_max = std::max(out.away2_max, (xi - origin).squaredNorm());
   }
   out.finite = bad == 0;
   if (!out.dynamic_finite) out.lowest = kNaN;
@@ -135,7 +147,10 @@ std::vector<int> constraints_touching_supports(const Model& model) {
 struct MetricsTable {
   ConstraintRuns runs;            // constraint_values' view (core/constraint_functions.hpp)
   // normalized_error's divisor: |rest| for distance and volume where it is not 0, else 1 (a
-  // division by 1 leaves |C|'s bits as they are).
+  // division by 1 leaves |C|'s bits as they are); negative (-|rest|) for a link, a distance
+  // constraint with a rest length, so that the same division gives its stretch a sign of its
+  // own (IEEE division is symmetric in the sign: |C| / -s is -(|C| / s), bit for bit) and the
+  // pass takes Sample::link_stretch_max without an array more.
   std::vector<double> scale;
   // 2 alpha where C^2 / (2 alpha) counts in the elastic energy (alpha > 0, not an FEM kind),
   // else 1; counted: all ones where it counts, else 0 (the term's bits and-ed with it: +0.0). A
@@ -167,6 +182,7 @@ std::shared_ptr<const MetricsTable> metrics_table(const Model& model) {
     const bool fem = is_fem_kind(c.kind);
     const bool relative = c.kind == ConstraintKind::Distance || c.kind == ConstraintKind::Volume;
     t->scale[j] = relative && std::abs(c.rest) > 0.0 ? std::abs(c.rest) : 1.0;
+    if (c.kind == ConstraintKind::Distance && std::abs(c.rest) > 0.0) t->scale[j] = -t->scale[j];
     // The FEM kinds' C^2 / (2 alpha) is V0 Psi_snh + a constant: their elements count it
     // (adding both would count each element twice).
     const bool counts = c.compliance > 0.0 && !fem;
@@ -191,19 +207,25 @@ constexpr size_t kLanes = 8;
 double tree(const double* a) { return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])); }
 
 // The constraints [begin, end) of one group into the lanes: sq[k] and mx[k] (from 0) get the
-// sum of squares and the largest of the errors |C| / scale of the constraints begin + k,
+// sum of squares and the largest of the errors |C| / |scale| of the constraints begin + k,
 // begin + k + kLanes, ...; el[k] (carried over the runs) their elastic terms C^2 / (2 alpha),
-// and-ed with `counted`. The largest as std::max: a NaN is passed over.
+// and-ed with `counted`; lk[k] (carried over the runs) the largest error of a link (scale < 0).
+// The largest as std::max: a NaN is passed over.
 __attribute__((target_clones("avx2", "default")))
 void lane_sums(const double* __restrict V, const double* __restrict scale, const double* __restrict two_alpha,
                const std::uint64_t* __restrict counted, size_t begin, size_t end, double* __restrict sq_out,
-               double* __restrict mx_out, double* __restrict el_inout) {
-  double sq[kLanes] = {}, mx[kLanes] = {}, el[kLanes];
-  for (size_t k = 0; k < kLanes; ++k) el[k] = el_inout[k];
+               double* __restrict mx_out, double* __restrict el_inout, double* __restrict lk_inout) {
+  double sq[kLanes] = {}, mx[kLanes] = {}, el[kLanes], lk[kLanes];
+  for (size_t k = 0; k < kLanes; ++k) {
+    el[k] = el_inout[k];
+    lk[k] = lk_inout[k];
+  }
   const auto add = [&](size_t k, size_t j) {
-    const double err = std::abs(V[j]) / scale[j];  // normalized_error (core/constraint_functions.hpp)
+    const double q = std::abs(V[j]) / scale[j];  // -err for a link, else err
+    const double err = std::abs(q);               // normalized_error (core/constraint_functions.hpp)
     sq[k] += err * err;
     mx[k] = mx[k] < err ? err : mx[k];
+    lk[k] = lk[k] < -q ? -q : lk[k];  // -q < 0 for any other constraint
     el[k] += std::bit_cast<double>(std::bit_cast<std::uint64_t>(V[j] * V[j] / two_alpha[j]) & counted[j]);
   };
   size_t j = begin;
@@ -214,6 +236,7 @@ void lane_sums(const double* __restrict V, const double* __restrict scale, const
     sq_out[k] = sq[k];
     mx_out[k] = mx[k];
     el_inout[k] = el[k];
+    lk_inout[k] = lk[k];
   }
 }
 
@@ -224,6 +247,7 @@ MetricsBaseline measure_baseline(const Model& model, const State& initial) {
   b.tet_volume = model.tets.empty() ? kNaN : total_tet_volume(model, initial.x);
   b.surface_volume = model.surface_closed ? enclosed_volume(model, initial.x) : kNaN;
   b.extent = max_distance_from_centroid(initial.x);
+  if (initial.x.rows() > 0) b.centroid = initial.x.colwise().mean().transpose();
   b.support_constraints = constraints_touching_supports(model);
   b.supports_listed = true;
   b.table = metrics_table(model);
@@ -261,11 +285,12 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   // constraint_error's, put in its value's place (its scale is 1 and its energy not counted here).
   for (const size_t j : t->fem) values[j] = constraint_error(model, model.constraints[j], x);
   const double* __restrict V = values.data();
-  double elastic_lanes[kLanes] = {};
+  double elastic_lanes[kLanes] = {}, link_lanes[kLanes] = {};
   double sum_sq = 0.0, error_max = 0.0;
   for (const MetricsTable::GroupRun& run : t->group_runs) {
     double sq[kLanes] = {}, mx[kLanes] = {};
-    lane_sums(V, t->scale.data(), t->two_alpha.data(), t->counted.data(), run.begin, run.end, sq, mx, elastic_lanes);
+    lane_sums(V, t->scale.data(), t->two_alpha.data(), t->counted.data(), run.begin, run.end, sq, mx, elastic_lanes,
+              link_lanes);
     const double run_sq = tree(sq);
     double run_max = mx[0];
     for (size_t k = 1; k < kLanes; ++k) run_max = std::max(run_max, mx[k]);
@@ -277,9 +302,13 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     error_max = std::max(error_max, run_max);
   }
   const double elastic = tree(elastic_lanes);  // the lanes of every run
+  for (size_t k = 0; k < kLanes; ++k) s.link_stretch_max = std::max(s.link_stretch_max, link_lanes[k]);
   for (GroupError& g : s.groups)
     if (std::isnan(g.rms)) g.max = kNaN;  // a NaN error in the group
-  if (std::isnan(sum_sq)) error_max = kNaN;
+  if (std::isnan(sum_sq)) {
+    error_max = kNaN;
+    s.link_stretch_max = kNaN;
+  }
   s.constraint_error_max = error_max;
   for (GroupError& g : s.groups) g.rms = g.count > 0 ? std::sqrt(g.rms / g.count) : 0.0;
   s.constraint_error_rms = m == 0 ? 0.0 : std::sqrt(sum_sq / static_cast<double>(m));
@@ -289,7 +318,7 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
     s.tet_volume = kNaN;
     s.volume_drift = kNaN;
   } else {
-    s.tet_volume = total_tet_volume(model, x);
+    s.tet_volume = total_tet_volume(model, x, &s.tets_inverted);
     s.volume_drift = relative_drift(s.tet_volume, baseline.tet_volume);
   }
   if (model.surface_closed) {
@@ -301,7 +330,8 @@ Sample measure(const Model& model, const State& state, const MetricsBaseline& ba
   }
 
   // Energy and momentum of the dynamic particles, and the particles' checks below, in one pass.
-  const ParticleScan scan = scan_particles(model, x, v, up_direction(model));
+  const ParticleScan scan = scan_particles(model, x, v, up_direction(model), baseline.centroid);
+  s.distance_from_start_max = scan.dynamic_finite ? std::sqrt(scan.away2_max) : kNaN;
   s.kinetic_energy = scan.kinetic;
   s.potential_energy = scan.potential;
   s.linear_momentum = scan.linear;

@@ -21,6 +21,7 @@ struct MetricsBaseline {
   double tet_volume = 0.0;      // m^3, sum of signed tet volumes at t = 0
   double surface_volume = 0.0;  // m^3, enclosed volume of the closed surface at t = 0
   double extent = 0.0;          // m, max distance of a particle from the centroid at t = 0
+  Vec3 centroid = Vec3::Zero();  // m, the particles' centroid at t = 0 (distance_from_start_max)
   // Whether the scene's physical material (its compliances and FEM elements) is the material
   // the run simulates, so that elastic_energy is defined (solvers/pbd_material.hpp,
   // elastic_energy_defined: not for pbd with an explicit k, nor for pbd-seed's k). Set by the
@@ -98,6 +99,17 @@ struct Sample {
   int sunk_count = 0;                                            // particles
   double sunk_depth = 0.0;                                       // m
   double velocity_hf_rms = std::numeric_limits<double>::quiet_NaN();  // m/s
+  // What the run health's detectors read (metrics/health.hpp), not logged as series:
+  //   link_stretch_max         the largest |d - d0| / d0 over the distance constraints with
+  //                            d0 > 0 (0 without; NaN when a constraint error is NaN)
+  //   tets_inverted            tets (Model::tets, positively oriented at rest) whose signed
+  //                            volume is negative
+  //   distance_from_start_max  the largest distance of a dynamic particle from the initial
+  //                            centroid (MetricsBaseline::centroid), m; NaN when a dynamic
+  //                            position is not finite
+  double link_stretch_max = 0.0;                                             // 1
+  int tets_inverted = 0;                                                     // tets
+  double distance_from_start_max = 0.0;                                      // m
 
   // Explosion indicators.
   double max_speed = 0.0;  // m/s over all particles (NaN when a velocity is not finite)

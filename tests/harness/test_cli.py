@@ -239,11 +239,13 @@ class CliTest(unittest.TestCase):
                      "--set", "solver.substeps=1", "--set", "solver.iterations=10", "--set", "time.duration=0.5",
                      "--out", out, "--no-xdmf")
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-        self.assertIn("complete with 2 warnings", r.stdout)
+        self.assertIn("complete with 3 warnings", r.stdout)
         self.assertIn("WARNING volume @1", r.stdout)
+        self.assertIn("WARNING inverted @2", r.stdout)  # tets turned inside out (metrics/health.hpp)
         r = pbdbench("summary", out)
-        self.assertIn("complete !2", r.stdout)
+        self.assertIn("complete !3", r.stdout)
         self.assertIn("tet volume lost", r.stdout)
+        self.assertIn("seen: tets turned inside out (inverted)", r.stdout)
         r = pbdbench("summary", "--csv", out)
         self.assertIn("energy_gain @", r.stdout)
 

@@ -157,7 +157,9 @@ TEST(Health, TunnellingThroughAPlaneAndThroughASphere) {
   m.planes.push_back(PlaneCollider{});  // y >= 0
   State s = rest_state(m);
   const MetricsBaseline b = measure_baseline(m, s);
-  HealthMonitor h(m, s, measure(m, s, b), 10, false);
+  HealthThresholds wide;
+  wide.region_factor = 1e6;  // the particle is moved 1 m in no time: not what is tested here
+  HealthMonitor h(m, s, measure(m, s, b), 10, false, 0.0, wide);
   s.x.row(0) = Vec3(0, -0.005, 0);  // overlapping by less than its radius: a contact, not a tunnel
   h.observe(1, s, measure(m, s, b));
   EXPECT_TRUE(h.warnings().empty());
@@ -211,7 +213,9 @@ TEST(Health, ThePushOutOfAnInitialOverlapIsNotAnEnergyGain) {
   pushed.time = dt;
   HealthMonitor without_dt(m, s, s0, 10, false);
   without_dt.observe(1, pushed, measure(m, pushed, b));
-  EXPECT_EQ(codes(without_dt), std::vector<std::string>{"energy_gain"});  // the 1e-12 J floor
+  // The 1e-12 J floor; and without the push-out nothing explains a speed in a scene at rest
+  // without gravity.
+  EXPECT_EQ(codes(without_dt), (std::vector<std::string>{"too_fast", "energy_gain"}));
   HealthMonitor with_dt(m, s, s0, 10, false, dt);
   with_dt.observe(1, pushed, measure(m, pushed, b));
   EXPECT_TRUE(with_dt.warnings().empty());
@@ -221,6 +225,182 @@ TEST(Health, ThePushOutOfAnInitialOverlapIsNotAnEnergyGain) {
   HealthMonitor fast(m, s, s0, 10, false, dt);
   fast.observe(1, faster, measure(m, faster, b));
   EXPECT_EQ(codes(fast), std::vector<std::string>{"energy_gain"});
+}
+
+}  // namespace
+}  // namespace pbdbench
+
+namespace pbdbench {
+namespace {
+
+bool warned(const HealthMonitor& h, const std::string& code) {
+  for (const RunWarning& w : h.warnings())
+    if (w.code == code) return true;
+  return false;
+}
+
+// Two particles joined by one link of rest length 1 m, without gravity.
+Model link_model() {
+  Model m;
+  m.rest_positions = Points(2, 3);
+  m.rest_positions << 0, 0, 0, 1, 0, 0;
+  m.inv_mass = {1.0, 1.0};
+  m.radius = {0.0, 0.0};
+  m.gravity = Vec3::Zero();
+  Constraint link;
+  link.particles = {0, 1, -1, -1};
+  link.rest = 1.0;
+  link.group = m.group_index("stretch");
+  m.constraints = {link};
+  return m;
+}
+
+// A link over twice its rest length is named, one just under is not, and a scene that starts
+// overstretched is named at step 0.
+TEST(Health, ALinkBeyondTwiceItsRestLengthIsOverstretched) {
+  const Model m = link_model();
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  HealthThresholds wide;
+  wide.region_factor = 1e6;
+  HealthMonitor h(m, s, measure(m, s, b), 10, true, 0.0, wide);
+  s.x(1, 0) = 1.95;
+  EXPECT_NEAR(measure(m, s, b).link_stretch_max, 0.95, 1e-12);
+  h.observe(1, s, measure(m, s, b));
+  EXPECT_FALSE(warned(h, "overstretched"));
+  s.x(1, 0) = 2.2;
+  h.observe(2, s, measure(m, s, b));
+  ASSERT_TRUE(warned(h, "overstretched"));
+  EXPECT_EQ(h.warnings()[0].step, 2);
+  EXPECT_NE(h.warnings()[0].message.find("2.2 times its rest length"), std::string::npos) << h.warnings()[0].message;
+
+  State start = rest_state(m);
+  start.x(1, 0) = 3.0;  // starts at three times its rest length
+  HealthMonitor violated(m, start, measure(m, start, b), 10, true, 0.0, wide);
+  ASSERT_TRUE(warned(violated, "overstretched"));
+  EXPECT_EQ(violated.warnings()[0].step, 0);
+  // A link of rest length 0 has no stretch ratio: it is not a link here.
+  Model zero = link_model();
+  zero.constraints[0].rest = 0.0;
+  EXPECT_EQ(measure(zero, start, measure_baseline(zero, start)).link_stretch_max, 0.0);
+}
+
+TEST(Health, ATetTurnedInsideOutIsInverted) {
+  Model m;
+  m.rest_positions = Points(4, 3);
+  m.rest_positions << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  m.inv_mass = {1, 1, 1, 1};
+  m.radius = {0, 0, 0, 0};
+  m.gravity = Vec3::Zero();
+  m.tets = {{0, 1, 2, 3}};
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  HealthThresholds wide;
+  wide.region_factor = 1e6;
+  HealthMonitor h(m, s, measure(m, s, b), 10, true, 0.0, wide);
+  s.x(3, 2) = 0.01;  // flattened, still positive
+  h.observe(1, s, measure(m, s, b));
+  EXPECT_FALSE(warned(h, "inverted"));
+  s.x(3, 2) = -0.5;  // through the opposite face
+  EXPECT_EQ(measure(m, s, b).tets_inverted, 1);
+  h.observe(2, s, measure(m, s, b));
+  EXPECT_TRUE(warned(h, "inverted"));
+}
+
+// One particle at rest 1 m up, gravity 10 m/s^2: the region is 10 x 1 cm + 2 x g t^2 / 2 and the
+// speed the scene explains 10 x (g t + sqrt(2 g H)), H = 1 mm.
+TEST(Health, LeavingTheRegionAndOutrunningGravity) {
+  const Model m = one_particle(0.0);
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  const auto after = [&](double drop, double speed, bool sources) {
+    HealthMonitor h(m, s, s0, 10, sources);
+    State t = s;
+    t.time = 1.0;
+    t.x(0, 1) = 1.0 - drop;
+    t.v(0, 1) = -speed;
+    h.observe(1, t, measure(m, t, b));
+    return h;
+  };
+  // A free fall of 1 s: 5 m at 10 m/s. Within the region (0.1 + 10 m) and the speed (10 x 10.14).
+  EXPECT_FALSE(warned(after(5.0, 10.0, false), "left_region"));
+  EXPECT_FALSE(warned(after(5.0, 10.0, false), "too_fast"));
+  // 10.2 m away: beyond the region; 102 m/s: beyond the speed.
+  EXPECT_TRUE(warned(after(10.2, 10.0, false), "left_region"));
+  EXPECT_TRUE(warned(after(5.0, 102.0, false), "too_fast"));
+  // Where a kinematic particle or collider moves, both are off.
+  EXPECT_FALSE(warned(after(10.2, 102.0, true), "left_region"));
+  EXPECT_FALSE(warned(after(10.2, 102.0, true), "too_fast"));
+}
+
+// The whole energy is watched where the elastic energy means something: a spring stretched at
+// rest holds more elastic energy than the scene had, which the motion energy does not show.
+TEST(Health, TheWholeEnergyCountsTheElasticEnergyWhereItMeansSomething) {
+  Model m = link_model();
+  m.constraints[0].compliance = 0.01;
+  State s = rest_state(m);
+  s.x(1, 0) = 1.5;  // E_el(0) = 0.5^2 / 0.02 = 12.5 J
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  State t = s;
+  t.x(1, 0) = 3.0;  // 2^2 / 0.02 = 200 J, at rest
+  const Sample st = measure(m, t, b);
+  HealthMonitor whole(m, s, s0, HealthRun{10, false, 0.01, true});
+  HealthMonitor motion(m, s, s0, HealthRun{10, false, 0.01, false});
+  whole.observe(1, t, st);
+  motion.observe(1, t, st);
+  EXPECT_TRUE(whole.whole_energy());
+  EXPECT_TRUE(warned(whole, "energy_gain"));
+  EXPECT_FALSE(warned(motion, "energy_gain"));
+}
+
+// A particle of radius 1 cm on the ground y = 0, 8 steps: a penetration of 2 mm through the last
+// quarter (steps 7 and 8) is named, one in an earlier step only is not.
+TEST(Health, PenetrationThatStaysThroughTheLastQuarter) {
+  Model m = one_particle(0.01);
+  m.gravity = Vec3::Zero();
+  m.planes.push_back(PlaneCollider{});
+  State s = rest_state(m);
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  const auto run = [&](double depth_late, double depth_early) {
+    HealthMonitor h(m, s, s0, 8, true);
+    for (long k = 1; k <= 8; ++k) {
+      State t = s;
+      t.time = 0.01 * static_cast<double>(k);
+      t.x(0, 1) = 0.01 - (k >= 7 ? depth_late : k == 3 ? depth_early : 0.0);
+      h.observe(k, t, measure(m, t, b));
+    }
+    return h;
+  };
+  EXPECT_TRUE(warned(run(0.002, 0.0), "penetration"));
+  EXPECT_FALSE(warned(run(0.0005, 0.0), "penetration"));  // under 0.1 x the radius
+  EXPECT_FALSE(warned(run(0.0, 0.005), "penetration"));   // an impact's transient
+}
+
+// Jitter through the last quarter above g dt, in a scene with gravity and a collider.
+TEST(Health, ASceneThatShouldRestButKeepsTremblingIsNotSettling) {
+  Model m = one_particle(0.01);
+  m.planes.push_back(PlaneCollider{});
+  State s = rest_state(m);
+  s.x(0, 1) = 0.01;
+  const MetricsBaseline b = measure_baseline(m, s);
+  const Sample s0 = measure(m, s, b);
+  const double dt = 0.01;  // g dt = 0.1 m/s
+  const auto run = [&](double jitter) {
+    HealthMonitor h(m, s, s0, 8, false, dt);
+    for (long k = 1; k <= 8; ++k) {
+      State t = s;
+      t.time = dt * static_cast<double>(k);
+      Sample sk = measure(m, t, b);
+      sk.velocity_hf_rms = jitter;
+      h.observe(k, t, sk);
+    }
+    return h;
+  };
+  EXPECT_TRUE(warned(run(0.2), "not_settling"));
+  EXPECT_FALSE(warned(run(0.05), "not_settling"));
 }
 
 }  // namespace
