@@ -133,10 +133,20 @@ std::vector<int> constraint_particles(const Model& model, const Constraint& c) {
   return p;
 }
 
+// A dataset of doubles; `compress`: one chunk, shuffled and deflated at level 1 (the standard
+// filters: ParaView, h5py and meshio read them).
 void write_dataset(H5::H5File& f, const std::string& name, const std::vector<hsize_t>& dims,
-                   const double* data) {
+                   const double* data, bool compress = false) {
   H5::DataSpace space(static_cast<int>(dims.size()), dims.data());
-  H5::DataSet ds = f.createDataSet(name, H5::PredType::IEEE_F64LE, space);
+  H5::DSetCreatPropList plist;
+  bool empty = false;
+  for (hsize_t d : dims) empty = empty || d == 0;
+  if (compress && !empty) {
+    plist.setChunk(static_cast<int>(dims.size()), dims.data());
+    plist.setShuffle();
+    plist.setDeflate(1);
+  }
+  H5::DataSet ds = f.createDataSet(name, H5::PredType::IEEE_F64LE, space, plist);
   hsize_t n = 1;
   for (hsize_t d : dims) n *= d;
   if (n > 0) ds.write(data, H5::PredType::NATIVE_DOUBLE);
@@ -286,7 +296,6 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   const hsize_t N = static_cast<hsize_t>(n);
   std::vector<double> inv_mass(model.inv_mass), pinned(N);
   for (int i = 0; i < n; ++i) pinned[static_cast<size_t>(i)] = model.inv_mass[static_cast<size_t>(i)] == 0.0 ? 1.0 : 0.0;
-  std::vector<double> strain(F * E), edge_err(F * E), area(F * T), tri_err(F * T), volume(F * K), tet_err(F * K);
   std::vector<double> change(F * C), cell_err(F * C);  // per frame, all cells in the mixed order
   auto tri_area = [](const Vec3& a, const Vec3& b, const Vec3& c) { return 0.5 * (b - a).cross(c - a).norm(); };
   std::vector<double> err(model.constraints.size()), particle_err(static_cast<size_t>(n));
@@ -323,23 +332,17 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
     for (size_t t = 0; t < K; ++t) {
       const auto [a, b, c, d] = tets.cells[t];
       const double v0 = tet_signed_volume(X.row(a), X.row(b), X.row(c), X.row(d));
-      volume[f * K + t] = v0 != 0.0 ? tet_signed_volume(x.row(a), x.row(b), x.row(c), x.row(d)) / v0 - 1.0 : kNaN;
-      tet_err[f * K + t] = cell_err[f * C + t];
-      change[f * C + t] = volume[f * K + t];
+      change[f * C + t] = v0 != 0.0 ? tet_signed_volume(x.row(a), x.row(b), x.row(c), x.row(d)) / v0 - 1.0 : kNaN;
     }
     for (size_t t = 0; t < T; ++t) {
       const auto [a, b, c] = tris.cells[t];
       const double a0 = tri_area(X.row(a), X.row(b), X.row(c));
-      area[f * T + t] = a0 > 0.0 ? tri_area(x.row(a), x.row(b), x.row(c)) / a0 - 1.0 : kNaN;
-      tri_err[f * T + t] = cell_err[f * C + K + t];
-      change[f * C + K + t] = area[f * T + t];
+      change[f * C + K + t] = a0 > 0.0 ? tri_area(x.row(a), x.row(b), x.row(c)) / a0 - 1.0 : kNaN;
     }
     for (size_t e = 0; e < E; ++e) {
       const auto [a, b] = edges.cells[e];
       const double l0 = (X.row(a) - X.row(b)).norm();
-      strain[f * E + e] = l0 > 0.0 ? (x.row(a) - x.row(b)).norm() / l0 - 1.0 : kNaN;
-      edge_err[f * E + e] = cell_err[f * C + K + T + e];
-      change[f * C + K + T + e] = strain[f * E + e];
+      change[f * C + K + T + e] = l0 > 0.0 ? (x.row(a) - x.row(b)).norm() / l0 - 1.0 : kNaN;
     }
   }
 
@@ -376,8 +379,8 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   }
   out.collider_points = static_cast<long>(CP);
 
-  // The data file: the fields over all frames (F, cells) by cell type, as scripts/animate.py
-  // reads them, and what the XDMF reads, one whole dataset per frame under /frames/NNNNNN/.
+  // The data file: the topology, and per frame under /frames/NNNNNN/ what the XDMF reads, each
+  // a whole dataset (scripts/runfile.py load_viz splits the cell fields by cell type again).
   const auto frame_group = [](hsize_t f) { return fmt::format("frames/{:06d}", f); };
   const std::string tmp = out.data.string() + ".tmp";
   try {
@@ -399,13 +402,6 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
     for (auto& t : tets.cells) flat.insert(flat.end(), t.begin(), t.end());
     write_ints(h, "tets", {K, 4}, flat.data());
     write_ints(h, "mixed", {static_cast<hsize_t>(mixed.size())}, mixed.data());
-    write_dataset(h, "edge_strain", {F, E}, strain.data());
-    write_dataset(h, "edge_constraint_error", {F, E}, edge_err.data());
-    write_dataset(h, "triangle_area_change", {F, T}, area.data());
-    write_dataset(h, "triangle_constraint_error", {F, T}, tri_err.data());
-    write_dataset(h, "tet_volume_change", {F, K}, volume.data());
-    write_dataset(h, "tet_constraint_error", {F, K}, tet_err.data());
-    write_dataset(h, "collider_points", {collider_frames, CP, 3}, collider_points.data());
     write_ints(h, "collider_triangles", {CT, 3}, collider_tris.data());
     h.createGroup("frames");
     std::vector<double> buffer(N * 3);
@@ -415,21 +411,21 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
       const Points& x = run_data.frames[f];
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = x(i, k);
-      write_dataset(h, g + "/positions", {N, 3}, buffer.data());
+      write_dataset(h, g + "/positions", {N, 3}, buffer.data(), true);
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k)
           buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = x(i, k) - model.rest_positions(i, k);
-      write_dataset(h, g + "/displacement", {N, 3}, buffer.data());
+      write_dataset(h, g + "/displacement", {N, 3}, buffer.data(), true);
       if (velocities) {
         const Points& v = run_data.velocities[f];
         for (int i = 0; i < n; ++i)
           for (int k = 0; k < 3; ++k) buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = v(i, k);
-        write_dataset(h, g + "/velocity", {N, 3}, buffer.data());
+        write_dataset(h, g + "/velocity", {N, 3}, buffer.data(), true);
       }
-      write_dataset(h, g + "/change", {C}, change.data() + f * C);
-      write_dataset(h, g + "/constraint_error", {C}, cell_err.data() + f * C);
+      write_dataset(h, g + "/change", {C}, change.data() + f * C, true);
+      write_dataset(h, g + "/constraint_error", {C}, cell_err.data() + f * C, true);
       if (moving || f == 0)
-        write_dataset(h, g + "/collider_points", {CP, 3}, collider_points.data() + (moving ? f : 0) * CP * 3);
+        write_dataset(h, g + "/collider_points", {CP, 3}, collider_points.data() + (moving ? f : 0) * CP * 3, true);
     }
   } catch (const H5::Exception& e) {
     fail(out.data, "cannot write: " + e.getDetailMsg());

@@ -17,11 +17,10 @@
 //                 that share a particle with it, 0 where none does; NaN only where a constraint's
 //                 error is NaN.
 //   RUN.viz.h5    the data the XDMF reads, each a whole dataset (no hyperslab: meshio reads none):
-//                 per frame /frames/NNNNNN/ positions, displacement, velocity, change,
-//                 constraint_error (and collider_points); and for scripts/animate.py the fields
-//                 over all frames by cell type: edge_strain, edge_constraint_error,
-//                 triangle_area_change, triangle_constraint_error, tet_volume_change,
-//                 tet_constraint_error (F, cells), collider_points (F or 1, P, 3).
+//                 edges, triangles, tets, mixed (the mixed topology), inv_mass, pinned,
+//                 collider_triangles, and per frame /frames/NNNNNN/ positions, displacement,
+//                 velocity, change, constraint_error, collider_points (frame 0's only when the
+//                 colliders do not move), deflated (level 1, shuffled).
 #pragma once
 
 #include <filesystem>

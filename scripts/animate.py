@@ -28,7 +28,6 @@ MP4 needs ffmpeg (Debian's, installed by scripts/install_deps.sh); GIF uses Pill
 """
 import argparse
 import os
-import shutil
 import subprocess
 import sys
 
@@ -51,12 +50,7 @@ FIELDS = {
 }
 
 
-def find_pbdbench(given):
-    for candidate in (given, os.environ.get("PBDBENCH_BIN"), shutil.which("pbdbench"),
-                      os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build", "pbdbench")):
-        if candidate and os.path.isfile(candidate) and os.access(candidate, os.X_OK):
-            return candidate
-    return None
+find_pbdbench = runfile.find_pbdbench
 
 
 def viz_of(path, pbdbench):

@@ -304,18 +304,39 @@ def without_viz(paths, program):
 
 def load_viz(path):
     """The fields of a run's ParaView export (RUN.viz.h5, written by `pbdbench run` or
-    `pbdbench export RUN.h5`; runfile/xdmf.hpp): name -> numpy array (edges, triangles, tets,
-    collider_points (F or 1, P, 3), collider_triangles, mixed, inv_mass, pinned, and per frame
-    and cell edge_strain, edge_constraint_error, triangle_area_change, triangle_constraint_error,
-    tet_volume_change, tet_constraint_error); the per-frame groups the XDMF reads (/frames/) are
-    left out. Raises RunFileError."""
+    `pbdbench export RUN.h5`; runfile/xdmf.hpp): name -> numpy array. Its datasets (edges,
+    triangles, tets, mixed, inv_mass, pinned, collider_triangles), and the per-frame data gathered
+    over the frames: collider_points (F, or 1 when the colliders do not move; P, 3), and the cell
+    fields split by cell type (the export stores them per frame for all cells, tets, then
+    triangles, then edges): edge_strain, edge_constraint_error, triangle_area_change,
+    triangle_constraint_error, tet_volume_change, tet_constraint_error, each (F, cells).
+    Raises RunFileError."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise RunFileError(f"{path}: no such file")
     try:
         with h5py.File(path, "r") as f:
-            return {name: ds[()] for name, ds in f.items() if isinstance(ds, h5py.Dataset)}
-    except OSError as e:
+            out = {name: ds[()] for name, ds in f.items() if isinstance(ds, h5py.Dataset)}
+            frames = f.get("frames")
+            if not isinstance(frames, h5py.Group):
+                return out
+            names = sorted(frames)
+            counts = [len(out.get(k, ())) for k in ("tets", "triangles", "edges")]
+            bounds = np.cumsum([0] + counts)
+            for field, per_kind in (("change", ("tet_volume_change", "triangle_area_change", "edge_strain")),
+                                    ("constraint_error", ("tet_constraint_error", "triangle_constraint_error",
+                                                          "edge_constraint_error"))):
+                rows = np.array([frames[n][field][()] for n in names if field in frames[n]], dtype=float)
+                if len(rows) != len(names):
+                    continue
+                rows = rows.reshape(len(names), -1)
+                for k, name in enumerate(per_kind):
+                    out[name] = rows[:, bounds[k]:bounds[k + 1]]
+            colliders = [frames[n]["collider_points"][()] for n in names if "collider_points" in frames[n]]
+            if colliders:
+                out["collider_points"] = np.array(colliders, dtype=float)
+            return out
+    except (OSError, KeyError) as e:
         raise RunFileError(f"{path}: cannot read: {e}") from e
 
 
