@@ -19,6 +19,7 @@
 #include "harness/slurm.hpp"
 #include "harness/sweep.hpp"
 #include "runfile/build_info.hpp"
+#include "runfile/output_guard.hpp"
 #include "runfile/run_file.hpp"
 
 namespace pbdbench::experiments {
@@ -37,9 +38,26 @@ void write_text(const fs::path& path, const std::string& text) {
       if (old == text) return;
     }
   }
-  std::ofstream f(path, std::ios::binary);
-  f << text;
-  if (!f) throw std::runtime_error("cannot write " + path.string());
+  write_text_output(path, text);  // whole or not at all, never through a planted link
+}
+
+// Every file the command writes, checked before any run is made (runfile/output_guard.hpp): only
+// pbdbench's own earlier report, index and verdict record are replaced, each known by its text.
+void check_outputs(const ClaimsCommand& cmd, const fs::path& report, const fs::path& runs, bool claims) {
+  auto text = [](const std::string& marker) {
+    return [marker](const fs::path& p) { return has_marker(p, marker, 1 << 16); };
+  };
+  const std::string arg = cmd.out.empty() ? "the report folder" : "--out";
+  check_output_folder(report, arg);
+  check_output(report / "README.md", OutputTarget{arg, "report (README.md)", text("Do not edit: run the command again."), {}});
+  check_output(report / (claims ? "claims.json" : "reproductions.json"),
+               OutputTarget{arg, "results file", text("{\n  \"tier\": "), {}});
+  check_output_folder(runs, "--runs");
+  check_output(runs / "index.json", OutputTarget{"--runs", "index of run files", text("{\n  \"runs\": [\n"), {}});
+  if (!cmd.record.empty())
+    check_output(cmd.record, OutputTarget{"--record", "verdict record",
+                                          text("# The verdict of every part of every experiment, "),
+                                          {{cmd.expect, "the --expect record"}}});
 }
 }  // namespace
 
@@ -182,6 +200,7 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
                                                                 : fs::path("results") / command_name(cmd.kind) / tier;
   EvaluateOptions options = evaluate_options(cmd, &log);
   outcome.runs = options.runs_dir;
+  check_outputs(cmd, outcome.out, outcome.runs, claims);
 
   // The merge of shards: every run and every timing group must be finished; it makes none.
   if (cmd.merge_shards > 0) {

@@ -146,7 +146,8 @@ int cmd_export(const std::vector<std::string>& files, const std::string& out) {
   for (const std::string& f : files) {
     const fs::path run_file(f);
     if (!is_run_file(run_file)) throw CompareInputError(f + ": not a pbdbench run file");
-    print_export(write_xdmf(run_file, model_of_run(run_file), out.empty() ? default_xdmf_path(run_file) : fs::path(out)));
+    print_export(write_xdmf(run_file, model_of_run(run_file), out.empty() ? default_xdmf_path(run_file) : fs::path(out),
+                            out.empty() ? "the export" : "--out"));
   }
   return kExitOk;
 }
@@ -344,6 +345,9 @@ int run_python(const fs::path& script, const std::vector<std::string>& args) {
 // The compare file goes to --out; with --plot alone, to a temporary file removed after plotting.
 int cmd_compare(const std::string& run_file, const std::string& reference_file,
                 const std::string& out_arg, const std::string& plot, double until) {
+  if (!out_arg.empty())
+    check_output(out_arg, OutputTarget{"--out", "compare file", is_compare_file,
+                                       {{run_file, "the run file compared"}, {reference_file, "the reference run file"}}});
   const CompareRun run = read_compare_run(run_file);
   const CompareRun reference = read_compare_run(reference_file);
   CompareOptions options;
@@ -378,6 +382,7 @@ int cmd_compare(const std::string& run_file, const std::string& reference_file,
 int cmd_converge(const std::string& scenario, const std::vector<std::string>& sets, int warmup_steps,
                  int max_sweeps, const std::vector<std::string>& methods, const std::string& out,
                  bool quiet) {
+  check_output(out, OutputTarget{"--out", "convergence file", is_converge_file, {{scenario, "the scenario file"}}});
   const config::Config cfg = config::load(scenario, parse_overrides(sets));
   ConvergeOptions options;
   options.warmup_steps = warmup_steps;

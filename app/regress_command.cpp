@@ -13,6 +13,8 @@
 #include "harness/sweep.hpp"
 #include "regress/regress.hpp"
 #include "runfile/build_info.hpp"
+#include "runfile/output_guard.hpp"
+#include "runfile/regress_file.hpp"
 #include "runfile/run_file.hpp"
 
 namespace pbdbench::regress {
@@ -20,11 +22,48 @@ namespace pbdbench::regress {
 namespace fs = std::filesystem;
 
 namespace {
-void write_text(const fs::path& path, const std::string& text) {
-  if (path.has_parent_path()) fs::create_directories(path.parent_path());
-  std::ofstream f(path, std::ios::binary);
-  f << text;
-  if (!f) throw std::runtime_error("cannot write " + path.string());
+// The text outputs, each known by a line of its own (runfile/output_guard.hpp: only an earlier
+// output of the same kind is replaced).
+struct TextOutput {
+  const char* kind;
+  const char* marker;
+};
+constexpr TextOutput kIndex = {"index of run files", "{\n  \"runs\": [\n"};
+constexpr TextOutput kResults = {"regression result (regress.json)", "{\"build\": {\"commit\": "};
+constexpr TextOutput kReport = {"regression report (regress.md)", "# Regression\n\n`pbdbench regress` ("};
+constexpr TextOutput kBaselines = {"baselines file", "# Baselines of the regression, "};
+
+OutputTarget target(const std::string& argument, const TextOutput& t) {
+  const std::string marker = t.marker;
+  return OutputTarget{argument, t.kind, [marker](const fs::path& p) { return has_marker(p, marker); }, {}};
+}
+
+// What names the regression's folder in a refusal.
+std::string out_argument(const RegressCommand& cmd) { return cmd.out.empty() ? "the regression's folder" : "--out"; }
+
+void write_text(const fs::path& path, const std::string& text, const std::string& argument, const TextOutput& t) {
+  check_output(path, target(argument, t));
+  write_text_output(path, text, argument);
+}
+
+// Every output of the command, checked before any run is made: the folders, the report's files
+// and, with --update, the baselines.
+void check_outputs(const RegressCommand& cmd, const fs::path& baselines) {
+  const fs::path out = regress_out(cmd);
+  const std::string arg = out_argument(cmd);
+  const std::vector<OutputInput> inputs = {{cmd.registry, "the case registry"}, {cmd.against, "the --against folder"}};
+  check_output_folder(out, arg, inputs);
+  check_output_folder(out / "runs", arg);
+  if (cmd.repeat) check_output_folder(out / "repeat", arg);
+  check_output(out / "runs" / "index.json", target(arg, kIndex));
+  check_output(out / "regress.json", target(arg, kResults));
+  check_output(out / "regress.md", target(arg, kReport));
+  check_output(out / "regress.h5", OutputTarget{arg, "regress file", is_regress_file, {}});
+  if (cmd.update) {
+    OutputTarget b = target("--baselines", kBaselines);
+    b.inputs = {{cmd.registry, "the case registry"}};
+    check_output(baselines, b);
+  }
 }
 
 // The cases the command selects, in the registry's order.
@@ -65,7 +104,7 @@ void write_index(const fs::path& path, const std::vector<const CaseSpec*>& cases
                       file.filename().string(), status, k + 1 < cases.size() ? "," : "");
   }
   js << "  ]\n}\n";
-  write_text(path, js.str());
+  write_text(path, js.str(), "--out", kIndex);
 }
 
 // One case a unit, dealt in turn.
@@ -80,6 +119,8 @@ RegressShards regress_shards(const RegressCommand& cmd, int shards) {
   const Registry reg = load_registry(cmd.registry.empty() ? registry_file() : cmd.registry);
   const std::vector<const CaseSpec*> cases = selected(cmd, reg);
   const fs::path out = regress_out(cmd);
+  check_output_folder(out, out_argument(cmd));
+  check_output_folder(out / "runs", out_argument(cmd));
   RegressShards r;
   for (size_t k = 0; k < cases.size(); ++k) {
     r.shard.push_back(shard_of(k, shards));
@@ -101,6 +142,9 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
         "--update: the data folder {} is an installation, not a source checkout: give --baselines FILE",
         data.string()));
 
+  const fs::path baselines_file =
+      !cmd.baselines.empty() ? cmd.baselines : data / "regress" / fmt::format("baselines_{}.toml", tier);
+  check_outputs(cmd, baselines_file);
   RegressOutcome outcome;
   outcome.out = regress_out(cmd);
   outcome.runs = outcome.out / "runs";
@@ -178,12 +222,11 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
                        r.warnings.empty() ? "" : fmt::format(" with {} warning{}", r.warnings.size(),
                                                              r.warnings.size() == 1 ? "" : "s"));
   }
-  write_text(outcome.out / "regress.json", results_json(results));
+  write_text(outcome.out / "regress.json", results_json(results), out_argument(cmd), kResults);
 
-  const fs::path baselines =
-      !cmd.baselines.empty() ? cmd.baselines : data / "regress" / fmt::format("baselines_{}.toml", tier);
+  const fs::path& baselines = baselines_file;
   if (cmd.update) {
-    write_text(baselines, baseline_toml(results, cmd.tier));
+    write_text(baselines, baseline_toml(results, cmd.tier), "--baselines", kBaselines);
     out << fmt::format("{} cases measured; baselines written to {} (build {})\n", results.size(),
                        baselines.string(), build_info().git_commit);
     outcome.updated = true;
@@ -221,7 +264,8 @@ RegressOutcome run_regress(const RegressCommand& cmd, std::ostream& out, std::os
     for (const std::string& w : r.warnings) warnings += fmt::format("  {}: WARNING {}\n", r.name, w);
   write_text(outcome.out / "regress.md",
              report_markdown(rep, header) +
-                 (warnings.empty() ? "" : "\n## Warnings of the runs\n\n```\n" + warnings + "```\n"));
+                 (warnings.empty() ? "" : "\n## Warnings of the runs\n\n```\n" + warnings + "```\n"),
+             out_argument(cmd), kReport);
   write_report_h5(outcome.out / "regress.h5", rep);
   out << report_table(rep);
   if (!warnings.empty()) out << "warnings of the runs:\n" << warnings;

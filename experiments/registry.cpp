@@ -16,6 +16,7 @@
 
 #include "experiments/experiment.hpp"
 #include "experiments/sha256.hpp"
+#include "runfile/output_guard.hpp"
 #include "runfile/utc_now.hpp"
 
 namespace pbdbench::experiments {
@@ -273,6 +274,10 @@ int register_experiments(const std::vector<Experiment>& chosen, const fs::path& 
                                  : std::string());
   }
   if (!appended.empty()) {
+    // Appended to pbdbench's own registry only (runfile/output_guard.hpp).
+    check_output(registry_file, OutputTarget{"the registry", "registry",
+                                             [](const fs::path& p) { return has_marker(p, "# Registrations of experiment files"); },
+                                             {}});
     std::error_code ec;
     const bool fresh = !fs::exists(registry_file, ec);
     std::ofstream f(registry_file, std::ios::app);

@@ -393,6 +393,7 @@ SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::o
     }
   }
 
+  check_output_folder(options.out_dir, "--out");  // the one output guard (runfile/output_guard.hpp)
   fs::create_directories(options.out_dir);
   SweepResult result;
   result.runs.resize(indices.size());

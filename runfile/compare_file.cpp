@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "runfile/layout.hpp"
+#include "runfile/output_guard.hpp"
 
 namespace pbdbench {
 
@@ -202,6 +203,8 @@ std::vector<AttributeInfo> compare_root_attributes() {
   for (AttributeInfo& a : provenance_attributes()) out.push_back(std::move(a));
   return out;
 }
+
+bool is_compare_file(const fs::path& path) { return is_pbdbench_file(path, kContent); }
 
 void write_compare_file(const fs::path& path, const CompareResult& r) {
   layout::write_file(path, "compare", [&](H5::H5File& file) {

@@ -82,6 +82,9 @@ struct CompareResult {
 // 10 interpolated between two of its own": the frames_used and rows_used attributes.
 std::string match_line(const TimeMatch& m, const char* what);
 
+// True when `path` is a regular file holding a compare file (what `compare --out` may replace).
+bool is_compare_file(const std::filesystem::path& path);
+
 // Writes the compare file. Throws std::runtime_error naming the path on failure.
 void write_compare_file(const std::filesystem::path& path, const CompareResult& result);
 

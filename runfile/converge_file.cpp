@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "runfile/layout.hpp"
+#include "runfile/output_guard.hpp"
 
 namespace pbdbench {
 
@@ -99,6 +100,8 @@ std::vector<AttributeInfo> converge_method_attributes() {
   layout::describe(kMethod, out);
   return out;
 }
+
+bool is_converge_file(const fs::path& path) { return is_pbdbench_file(path, kContent); }
 
 void write_converge_file(const fs::path& path, const ConvergeResult& r) {
   layout::write_file(path, "converge", [&](H5::H5File& file) {

@@ -56,6 +56,9 @@ struct ConvergeResult {
   std::vector<ConvergeMethod> methods;
 };
 
+// True when `path` is a regular file holding a convergence file (what `converge --out` may replace).
+bool is_converge_file(const std::filesystem::path& path);
+
 // Writes the convergence file. Throws std::runtime_error naming the path on failure.
 void write_converge_file(const std::filesystem::path& path, const ConvergeResult& result);
 

@@ -51,6 +51,7 @@ H5::Group subgroup(H5::Group& g, const std::string& path) {
 #include <stdexcept>
 
 #include "runfile/build_info.hpp"
+#include "runfile/output_guard.hpp"
 #include "runfile/utc_now.hpp"
 
 namespace pbdbench::layout {
@@ -107,14 +108,30 @@ void write_file(const std::filesystem::path& path, const std::string& kind,
                 const std::function<void(H5::H5File&)>& write) {
   const std::string what = kind + " file " + path.string() + ": ";
   H5::Exception::dontPrint();
+  // Written whole beside the path, then renamed onto it: an interrupted write leaves the earlier
+  // file as it was, and nothing planted at the path or at its temporary is written through.
+  std::filesystem::path tmp;  // set once this process created it
   try {
     if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
-    H5::H5File file(path.string(), H5F_ACC_TRUNC);
-    write(file);
+    const std::filesystem::path claimed = claim_temporary(path);
+    {
+      H5::H5File file(claimed.string(), H5F_ACC_EXCL);
+      tmp = claimed;
+      write(file);
+    }
+    std::filesystem::rename(claimed, path);
   } catch (const H5::Exception& e) {
+    std::error_code ec;
+    if (!tmp.empty()) std::filesystem::remove(tmp, ec);
     throw std::runtime_error(what + "cannot write: " + h5::message(e));
   } catch (const std::filesystem::filesystem_error& e) {
+    std::error_code ec;
+    if (!tmp.empty()) std::filesystem::remove(tmp, ec);
     throw std::runtime_error(what + e.what());
+  } catch (...) {
+    std::error_code ec;
+    if (!tmp.empty()) std::filesystem::remove(tmp, ec);
+    throw;
   }
 }
 

@@ -5,6 +5,7 @@
 #include <variant>
 
 #include "runfile/layout.hpp"
+#include "runfile/output_guard.hpp"
 
 namespace pbdbench {
 
@@ -32,6 +33,20 @@ const std::array<Column, 8> kColumns = {{
 }};
 
 }  // namespace
+
+bool is_regress_file(const fs::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(std::filesystem::symlink_status(path, ec))) return false;
+  H5::Exception::dontPrint();
+  try {
+    const H5::H5File f(path.string(), H5F_ACC_RDONLY);
+    for (const Column& c : kColumns)
+      if (!f.nameExists(c.name)) return false;
+    return true;
+  } catch (const H5::Exception&) {
+    return false;
+  }
+}
 
 void write_regress_file(const fs::path& path, const std::vector<RegressFileRow>& rows) {
   layout::write_file(path, "regress", [&](H5::H5File& f) {

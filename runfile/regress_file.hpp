@@ -24,6 +24,9 @@ struct RegressFileRow {
   double allowed = 0.0;   // the tolerance: abs + rel * |baseline|
 };
 
+// True when `path` is a regular file holding a regress file (an HDF5 file of the columns below).
+bool is_regress_file(const std::filesystem::path& path);
+
 // Throws std::runtime_error naming the path on failure.
 void write_regress_file(const std::filesystem::path& path, const std::vector<RegressFileRow>& rows);
 // Throws std::runtime_error naming the path when the file cannot be read or a column is missing

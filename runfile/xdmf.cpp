@@ -192,12 +192,10 @@ bool is_our_data(const fs::path& p) {
   }
 }
 
-void check_replace(const fs::path& p, bool (*ours)(const fs::path&)) {
-  std::error_code ec;
-  const fs::file_status st = fs::symlink_status(p, ec);
-  if (ec || !fs::exists(st)) return;
-  if (!fs::is_regular_file(st) || !ours(p))
-    throw OutputRefused(p.string() + " exists and is not an earlier pbdbench export: nothing was written");
+// Only an earlier export of ours is replaced, never the run file exported (output_guard.hpp).
+void check_replace(const fs::path& p, const std::string& argument, const std::string& kind,
+                   bool (*ours)(const fs::path&), const fs::path& run_file) {
+  check_output(p, OutputTarget{argument, kind, ours, {{run_file, "the run file exported"}}});
 }
 
 }  // namespace
@@ -215,14 +213,17 @@ fs::path default_xdmf_path(const fs::path& run_file) {
   return p;
 }
 
-XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::path& xdmf) {
+XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::path& xdmf,
+                       const std::string& argument) {
   H5::Exception::dontPrint();
   XdmfSummary out;
   out.xdmf = xdmf;
   out.data = xdmf;
   out.data.replace_extension(".viz.h5");
-  check_replace(xdmf, is_our_export);
-  check_replace(out.data, is_our_data);
+  check_replace(xdmf, argument, "ParaView export", is_our_export, run_file);
+  check_replace(out.data, argument, "ParaView data file", is_our_data, run_file);
+  claim_temporary(xdmf, argument);  // both temporaries before anything is written
+  claim_temporary(out.data, argument);
 
   // The run's frames, through the run file's reader (run_file.hpp).
   const int n = model.particle_count();
@@ -382,9 +383,9 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   // The data file: the topology, and per frame under /frames/NNNNNN/ what the XDMF reads, each
   // a whole dataset (scripts/runfile.py load_viz splits the cell fields by cell type again).
   const auto frame_group = [](hsize_t f) { return fmt::format("frames/{:06d}", f); };
-  const std::string tmp = out.data.string() + ".tmp";
+  const std::string tmp = claim_temporary(out.data, argument).string();
   try {
-    H5::H5File h(tmp, H5F_ACC_TRUNC);
+    H5::H5File h(tmp, H5F_ACC_EXCL);  // afresh: never through a link planted at the temporary
     {
       const H5::StrType st(H5::PredType::C_S1, H5T_VARIABLE);
       H5::Attribute a = h.createAttribute("pbdbench_viz", st, H5::DataSpace(H5S_SCALAR));
@@ -477,14 +478,7 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
     x << "</Grid>\n";
   }
   x << "</Grid>\n</Domain>\n</Xdmf>\n";
-  {
-    const std::string tmpx = xdmf.string() + ".tmp";
-    std::ofstream o(tmpx);
-    o << x.str();
-    o.close();
-    if (!o) fail(xdmf, "cannot write");
-    fs::rename(tmpx, xdmf);
-  }
+  write_text_output(xdmf, x.str(), argument);
   return out;
 }
 

@@ -24,6 +24,7 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
 
 #include "core/model.hpp"
 
@@ -38,10 +39,12 @@ struct XdmfSummary {
 
 // Writes `xdmf` and the data file beside it (its stem + ".viz.h5") for the run file `run_file`
 // made from `model` (config::build_scene on the run's stored configuration). Refuses (OutputRefused,
-// runfile/output_guard.hpp) to replace a file that is not an earlier export; throws
+// runfile/output_guard.hpp, naming `argument`: "--out" for `export --out`) to replace a file that
+// is not an earlier export, or the run file itself, or to write through a link planted at a
+// temporary ("<file>.tmp"); throws
 // std::runtime_error naming the file when the run file cannot be read.
 XdmfSummary write_xdmf(const std::filesystem::path& run_file, const Model& model,
-                       const std::filesystem::path& xdmf);
+                       const std::filesystem::path& xdmf, const std::string& argument = "the export");
 
 // The default place of a run file's XDMF: RUN.h5 -> RUN.xdmf.
 std::filesystem::path default_xdmf_path(const std::filesystem::path& run_file);

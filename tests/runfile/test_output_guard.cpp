@@ -10,6 +10,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <H5Cpp.h>
+
 #include <filesystem>
 #include <fstream>
 #include <cstdio>
@@ -129,6 +131,125 @@ TEST(OutputGuard, TheLockOfADeadHolderIsTakenOver) {
   EXPECT_FALSE(output_holder(path).has_value());
   OutputLock again(path);
   EXPECT_TRUE(output_holder(path).has_value());
+}
+
+// The guard every writer shares: the argument and the file named, the kind judged by content,
+// the command's inputs never replaced.
+std::string refusal_of(const fs::path& path, const OutputTarget& target) {
+  try {
+    check_output(path, target);
+  } catch (const OutputRefused& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(OutputGuard, OneGuardForEveryKindOfOutput) {
+  const fs::path dir = temp_dir();
+  const OutputTarget notes{"--notes", "notes file", [](const fs::path& p) { return has_marker(p, "# my notes"); },
+                           {{dir / "input.txt", "the input"}}};
+  EXPECT_EQ(refusal_of(dir / "absent.txt", notes), "");
+  std::ofstream(dir / "ours.txt") << "# my notes\nold\n";
+  EXPECT_EQ(refusal_of(dir / "ours.txt", notes), "");
+  std::ofstream(dir / "theirs.txt") << "someone else's\n";
+  EXPECT_EQ(refusal_of(dir / "theirs.txt", notes),
+            "--notes " + (dir / "theirs.txt").string() +
+                ": exists and is not a pbdbench notes file (checked by its content): nothing was written; remove it "
+                "or choose another path");
+  // An input, even one that looks like an earlier output, and by another name of it.
+  std::ofstream(dir / "input.txt") << "# my notes\n";
+  EXPECT_NE(refusal_of(dir / "input.txt", notes).find("is the input itself"), std::string::npos);
+  fs::create_hard_link(dir / "input.txt", dir / "input-too.txt");
+  EXPECT_NE(refusal_of(dir / "input-too.txt", notes).find("is the input itself"), std::string::npos);
+  EXPECT_NE(refusal_of(dir, notes).find("--notes " + dir.string() + ": is a directory, not a notes file"),
+            std::string::npos);
+  EXPECT_NE(refusal_of("/dev/null", notes).find("character device"), std::string::npos);
+  fs::create_symlink(dir / "ours.txt", dir / "link.txt");
+  EXPECT_NE(refusal_of(dir / "link.txt", notes).find("symbolic link"), std::string::npos);
+  EXPECT_NE(refusal_of("", notes).find("--notes: the path is empty"), std::string::npos);
+  // has_marker looks only as far as it is told.
+  std::ofstream(dir / "late.txt") << std::string(100, 'x') << "# my notes\n";
+  EXPECT_TRUE(has_marker(dir / "late.txt", "# my notes", 200));
+  EXPECT_FALSE(has_marker(dir / "late.txt", "# my notes", 50));
+  EXPECT_FALSE(has_marker(dir / "link.txt", "# my notes"));  // never through a link
+}
+
+TEST(OutputGuard, PbdbenchFilesAreKnownByTheirContentAttribute) {
+  const fs::path dir = temp_dir();
+  const Model m = test::fixture_model();
+  {
+    RunFileWriter w(dir / "run.h5", header(), m);
+    w.finish(RunStatus::Complete, "", 0, 0.0);
+  }
+  EXPECT_FALSE(is_pbdbench_file(dir / "run.h5", "pbdbench compare"));  // a run file has no "content"
+  std::ofstream(dir / "text.h5") << "pbdbench compare\n";
+  EXPECT_FALSE(is_pbdbench_file(dir / "text.h5", "pbdbench compare"));
+  EXPECT_FALSE(is_pbdbench_file(dir / "absent.h5", "pbdbench compare"));
+  // The root's "content", a UTF-8 string as the layout writes it (runfile/layout.hpp).
+  {
+    H5::H5File f((dir / "compare.h5").string(), H5F_ACC_TRUNC);
+    H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
+    type.setCset(H5T_CSET_UTF8);
+    f.createAttribute("content", type, H5::DataSpace(H5S_SCALAR)).write(type, std::string("pbdbench compare"));
+  }
+  EXPECT_TRUE(is_pbdbench_file(dir / "compare.h5", "pbdbench compare"));
+  EXPECT_FALSE(is_pbdbench_file(dir / "compare.h5", "pbdbench converge"));
+  fs::create_symlink(dir / "compare.h5", dir / "link.h5");
+  EXPECT_FALSE(is_pbdbench_file(dir / "link.h5", "pbdbench compare"));
+}
+
+TEST(OutputGuard, FoldersMustBeFolders) {
+  const fs::path dir = temp_dir();
+  auto refusal = [](const fs::path& p, const std::vector<OutputInput>& inputs = {}) -> std::string {
+    try {
+      check_output_folder(p, "--out", inputs);
+    } catch (const OutputRefused& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_EQ(refusal(dir / "new"), "");
+  EXPECT_EQ(refusal(dir), "");
+  fs::create_directory(dir / "real");
+  fs::create_directory_symlink(dir / "real", dir / "linked");  // a results/ linked to a scratch disk
+  EXPECT_EQ(refusal(dir / "linked"), "");
+  fs::create_symlink(dir / "nowhere", dir / "dangling");
+  EXPECT_NE(refusal(dir / "dangling").find("a symbolic link to nothing"), std::string::npos);
+  std::ofstream(dir / "file.txt") << "x";
+  EXPECT_EQ(refusal(dir / "file.txt"), "--out " + (dir / "file.txt").string() +
+                                           ": is a regular file, not a folder: nothing was written");
+  EXPECT_NE(refusal("/dev/null").find("character device"), std::string::npos);
+  EXPECT_NE(refusal(dir / "real", {{dir / "real", "the experiments' folder"}}).find("is the experiments' folder itself"),
+            std::string::npos);
+}
+
+TEST(OutputGuard, TemporariesAreCreatedAfreshNeverThroughALink) {
+  const fs::path dir = temp_dir();
+  const fs::path out = dir / "out.xdmf";
+  std::ofstream(dir / "victim.txt") << "precious\n";
+  fs::create_symlink(dir / "victim.txt", dir / "out.xdmf.tmp");
+  try {
+    write_text_output(out, "new\n", "--out");
+    ADD_FAILURE() << "wrote through " << dir / "out.xdmf.tmp";
+  } catch (const OutputRefused& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("--out " + out.string() + ": its temporary " + out.string() + ".tmp is in the way and is a "
+                        "symbolic link"),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_EQ(read_all(dir / "victim.txt"), "precious\n");
+  EXPECT_FALSE(fs::exists(out));
+  // A killed writer's temporary (a plain file) is replaced; the output is written whole.
+  fs::remove(dir / "out.xdmf.tmp");
+  std::ofstream(dir / "out.xdmf.tmp") << "half";
+  write_text_output(out, "whole\n");
+  EXPECT_EQ(read_all(out), "whole\n");
+  EXPECT_FALSE(fs::exists(dir / "out.xdmf.tmp"));
+  // create_exclusive never opens what is there, a link least of all.
+  fs::create_symlink(dir / "victim.txt", dir / "planted");
+  EXPECT_THROW(create_exclusive(dir / "planted"), OutputRefused);
+  EXPECT_EQ(read_all(dir / "victim.txt"), "precious\n");
 }
 
 TEST(OutputGuard, AFileInTheWayOfTheLockIsNotOverwritten) {
