@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "experiments/claim_index.hpp"
 #include "experiments/evaluate.hpp"
@@ -154,9 +155,65 @@ Units units_of(const std::vector<Experiment>& chosen, const EvaluateOptions& opt
     for (const TimingSpec& t : e.timings) u.timings.emplace_back(&e, &t);
   }
   std::vector<size_t> sizes(u.plan.size(), 1);
+  options.executable = cmd.executable;
   for (const auto& [e, t] : u.timings) sizes.push_back(t->runs.size() * static_cast<size_t>(t->repeats + 1));
   const std::vector<int> dealt = deal_units(sizes, shards);
   u.run_shard.assign(dealt.begin(), dealt.begin() + static_cast<long>(u.plan.size()));
+// Each timing group's sessions at separate times: round r times the r-th session of every group
+// before any group's next one (experiments/timing.hpp), each in a process of its own.
+void time_in_rounds(const std::vector<Experiment>& chosen, const EvaluateOptions& options) {
+  if (options.executable.empty()) return;
+  std::error_code ec;
+  if (options.force)
+    for (const Experiment& e : chosen)
+      for (const TimingSpec& t : e.timings) fs::remove(timing_record_path(options.runs_dir, e.id, t.name), ec);
+  for (int round = 1; round <= kTimingSessions; ++round)
+    for (const Experiment& e : chosen)
+      for (const TimingSpec& t : e.timings) {
+        if (timing_is_current(e, t, options.tier, options.runs_dir)) continue;
+        if (!session_launcher(options.executable, e, t, options.tier)(options.runs_dir))
+          throw std::runtime_error(fmt::format("{}: timing group {}: the process timing session {} failed", e.id,
+                                               t.name, round));
+      }
+}
+
+// A timing part whose rule came out the other way in the previous report of the same tier (the
+// report being replaced) is inconclusive: the verdict flips between regenerations.
+void mark_timing_flips(std::vector<ClaimResult>& results, const fs::path& previous, Tier tier) {
+  std::error_code ec;
+  if (!fs::exists(previous, ec)) return;
+  nlohmann::json old;
+  try {
+    std::ifstream in(previous);
+    old = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception&) {
+    return;  // not a report's JSON: nothing to compare
+  }
+  if (old.value("tier", std::string()) != to_string(tier)) return;
+  std::map<std::string, std::pair<bool, std::string>> held;  // part id -> (rule held, verdict)
+  for (const nlohmann::json& c : old.value("claims", nlohmann::json::array()))
+    for (const nlohmann::json& p : c.value("parts", nlohmann::json::array())) {
+      if (!p.value("timing", false)) continue;
+      const std::string verdict = p.value("measured", p.value("verdict", std::string()));
+      Verdict v;
+      if (!parse_verdict(verdict, v) || (v != Verdict::Supported && v != Verdict::Contradicted)) continue;
+      held[p.value("id", std::string())] = {v == Verdict::Supported, verdict};
+    }
+  for (ClaimResult& c : results) {
+    for (size_t k = 0; k < c.parts.size(); ++k) {
+      PartResult& p = c.parts[k];
+      if (!p.timing || (p.measured != Verdict::Supported && p.measured != Verdict::Contradicted)) continue;
+      const auto it = held.find(part_id(c, k));
+      if (it == held.end() || it->second.first == (p.measured == Verdict::Supported)) continue;
+      p.verdict = Verdict::Inconclusive;
+      p.reason = fmt::format("the rule came out the other way in the previous report ({}, {}): a timing verdict that "
+                             "flips between regenerations is inconclusive",
+                             it->second.second, old.value("build", std::string("?")));
+    }
+    c.verdict = combine_verdicts(c.parts);
+  }
+}
+
   u.timing_shard.assign(dealt.begin() + static_cast<long>(u.plan.size()), dealt.end());
   return u;
 }
@@ -258,7 +315,8 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
       int timed = 0;
       for (size_t k = 0; k < u.timings.size(); ++k)
         if (u.timing_shard[k] == cmd.shard_index) {
-          (void)time_group(*u.timings[k].first, *u.timings[k].second, cmd.tier, options.runs_dir, cmd.force, &log);
+          (void)time_group(*u.timings[k].first, *u.timings[k].second, cmd.tier, options.runs_dir, cmd.force, &log,
+                           session_launcher(cmd.executable, *u.timings[k].first, *u.timings[k].second, cmd.tier));
           ++timed;
         }
       write_index(options.runs_dir / fmt::format("index.shard-{}-of-{}.json", cmd.shard_index, cmd.shard_count), u.plan);
@@ -278,7 +336,9 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
                      "lower case: beyond the article's regime), time\n",
                      claims ? "       " : "           ", claims ? "S" : "R", claims ? "supported" : "reproduced",
                      claims ? "C" : "N", claims ? "contradicted" : "not reproduced",
-                     claims ? "" : ", U setup unknown, = identity");
+                     claims ? ", = identity, ? not shown able to fail" : ", U setup unknown, = identity, ? not shown able to fail");
+  time_in_rounds(chosen, options);
+  options.timings_made = !options.executable.empty();  // read, even when forced: just timed
   std::vector<ClaimResult> results;
   for (const Experiment& e : chosen) {
     results.push_back(evaluate_claim(e, options));
@@ -311,6 +371,7 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
   if (index) ctx.index = &*index;
   const std::vector<Registration> registry = read_registry(registry_of(dir));
   for (const ClaimResult& r : results)
+        case Verdict::NotShown: ch = '?'; break;
     ctx.registration.emplace(r.id, registration_status(registry, registry_of(dir), r.id, r.file,
                                                        build_info().git_commit));
   write_text(outcome.out / "README.md", report_markdown(results, ctx));
@@ -332,5 +393,6 @@ int run_register(const RegisterCommand& cmd, std::ostream& out) {
                                                 : whole_report_dir(cmd.kind) / (claims ? "claims.json" : "reproductions.json");
   return register_experiments(choose(all, cmd.ids, claims, dir), registry_of(dir), results, cmd.note, out);
 }
+  mark_timing_flips(results, outcome.out / (claims ? "claims.json" : "reproductions.json"), cmd.tier);
 
 }  // namespace pbdbench::experiments

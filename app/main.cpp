@@ -33,6 +33,7 @@
 #include "config/config.hpp"
 #include "config/data_dir.hpp"
 #include "core/cancel.hpp"
+#include "experiments/timing.hpp"
 #include "harness/compare.hpp"
 #include "harness/converge.hpp"
 #include "harness/runner.hpp"
@@ -561,6 +562,20 @@ int main(int argc, char** argv) {
                            "The report's JSON whose results an earlier version had (default paper/claims/claims.json "
                            "or paper/reproductions.json)");
 
+  // time-session: one session of a timing group, in a process of its own, started by claims and
+  // paper (experiments/timing.hpp: a timing verdict needs the spread between processes).
+  std::string session_file, session_group, session_tier = "full", session_runs;
+  int session_part = 0;
+  auto* session_sub = app.add_subcommand(
+      "time-session", "Time one session of an experiment's timing group in this process (claims and paper start it)");
+  session_sub->group("");  // not in the help: not meant to be typed
+  session_sub->add_option("file", session_file, "Experiment file")->required();
+  session_sub->add_option("group", session_group, "Timing group")->required();
+  session_sub->add_option("--tier", session_tier, "quick or full")->check(CLI::IsMember({"quick", "full"}));
+  session_sub->add_option("--runs", session_runs, "Run files folder of the group's record")->required();
+  session_sub->add_option("--part", session_part, "Time the variant of this part's counterfactual (from 1)")
+      ->check(CLI::PositiveNumber);
+
   regress::RegressCommand regress_cmd;
   std::string regress_tier = "quick";
   bool regress_no_plot = false;
@@ -643,6 +658,22 @@ int main(int argc, char** argv) {
           std::cerr << "pbdbench: the plot was not drawn (" << script << ")\n";
       }
       return r.worse > 0 || r.bit_differences > 0 ? kExitRegression : kExitOk;
+    }
+    if (*session_sub) {
+      experiments::Experiment ex = experiments::load_experiment(session_file, false);
+      if (session_part > 0) {
+        if (session_part > static_cast<int>(ex.parts.size()) || !ex.parts[session_part - 1].counterfactual)
+          throw experiments::ExperimentError(
+              fmt::format("{}: --part {}: no such part with a counterfactual", session_file, session_part));
+        ex = ex.with_variant(ex.parts[session_part - 1].counterfactual->runs);
+      }
+      const experiments::TimingSpec* timing = ex.find_timing(session_group);
+      if (timing == nullptr)
+        throw experiments::ExperimentError(fmt::format("{}: no timing group named '{}'", session_file, session_group));
+      experiments::time_session(ex, *timing,
+                                session_tier == "quick" ? experiments::Tier::Quick : experiments::Tier::Full,
+                                session_runs, &std::cerr);
+      return kExitOk;
     }
     if (*register_sub) {
       register_cmd.kind = register_what == "claims" ? experiments::ExperimentKind::Claim

@@ -8,10 +8,14 @@
 #include <ostream>
 #include <set>
 
+#include <unistd.h>
+
 #include <fmt/format.h>
 
 #include "harness/runner.hpp"
+#include "harness/slurm.hpp"
 #include "harness/sweep.hpp"
+#include "experiments/sha256.hpp"
 #include "runfile/run_file.hpp"
 
 namespace pbdbench::experiments {
@@ -197,11 +201,84 @@ double combine(const std::string& mode, std::vector<double> values) {
   return sum / static_cast<double>(values.size());  // mean
 }
 
-std::string trial_stem(const RunSpec& run, int trials, int trial) {
-  return trials > 1 || !run.trial_keys.empty() ? fmt::format("{}-{:03d}", run.name, trial) : run.name;
+std::string trial_stem(const RunSpec& run, int trials, int trial, const std::string& name) {
+  return trials > 1 || !run.trial_keys.empty() ? fmt::format("{}-{:03d}", name, trial) : name;
+}
+std::string trial_stem(const RunSpec& run, int trials, int trial) { return trial_stem(run, trials, trial, run.name); }
+
+// A run's trials, made or read: their files are <dir>/<stem>[-<trial>].h5.
+RunResult make_run(const Experiment& ex, const RunSpec& run, const fs::path& dir, const std::string& stem,
+                   const EvaluateOptions& options) {
+  RunResult rr;
+  rr.name = run.name;
+  rr.timing_only = ex.timing_only(run);
+  {
+    const config::Config cfg = config::load(ex.scenario_of(run), ex.overrides(run, options.tier, 0));
+    rr.solver = cfg.get_string("solver.name");
+    if (rr.solver == "pbd-seed") rr.seed_fixes = cfg.get_strings("solver.seed.fixes");
+  }
+  const int trials = rr.timing_only ? 0 : ex.trials(run, options.tier);
+  for (int trial = 0; trial < trials; ++trial) {
+    const fs::path file = dir / (trial_stem(run, trials, trial, stem) + ".h5");
+    const config::Config cfg = config::load(ex.scenario_of(run), ex.overrides(run, options.tier, trial));
+    rr.files.push_back(file);
+    if (!options.force && run_is_current(file, cfg.to_toml())) {
+      ++rr.reused;
+    } else {
+      const auto tr = std::chrono::steady_clock::now();
+      const RunOutcome outcome = run_config(cfg, file);
+      rr.wall_time += seconds_since(tr);
+      if (outcome.status == RunStatus::Failed && rr.first_failure.empty()) rr.first_failure = outcome.reason;
+    }
+    const RunFileData header = read_run_file(file, false);
+    const std::string status = header.status();
+    if (const std::vector<std::string> w = header.warnings(); !w.empty()) {
+      if (rr.warned++ == 0) rr.first_warning = w.front();
+    }
+    if (status == "complete") ++rr.complete;
+    else if (status == "exploded") ++rr.exploded;
+    else if (status == "failed") ++rr.failed;
+    else ++rr.incomplete;
+  }
+  if (options.log != nullptr && !rr.timing_only) {
+    *options.log << fmt::format("  {} {}: {} trial{} ({} complete, {} exploded, {} failed{}), {:.2f} s{}\n",
+                                ex.id, stem, trials, trials == 1 ? "" : "s", rr.complete, rr.exploded, rr.failed,
+                                rr.incomplete > 0 ? fmt::format(", {} incomplete", rr.incomplete) : "",
+                                rr.wall_time, rr.reused > 0 ? fmt::format(" ({} reused)", rr.reused) : "");
+    if (!rr.first_failure.empty()) *options.log << "    first failure: " << rr.first_failure << "\n";
+    if (rr.warned > 0)
+      *options.log << fmt::format("    {} trial{} with warnings; first: {}\n", rr.warned, rr.warned == 1 ? "" : "s",
+                                  rr.first_warning);
+  }
+  return rr;
+}
+
+std::string variant_text(const RunVariant& v) {
+  std::vector<std::string> items;
+  if (!v.scenario.empty()) items.push_back("scenario = " + v.scenario);
+  for (const config::Override& o : v.set) items.push_back(o.path + " = " + o.value_text);
+  return fmt::format("{}: {}", v.run, fmt::join(items, ", "));
 }
 
 }  // namespace
+
+SessionLauncher session_launcher(const fs::path& executable, const Experiment& ex, const TimingSpec& timing, Tier tier,
+                                 int part) {
+  if (executable.empty()) return {};
+  // This very binary, even when a rebuild replaced the file meanwhile: a session timed by another
+  // build would not be this build's record (its build is part of the record).
+  fs::path self = executable;
+  std::error_code ec;
+  if (const fs::path proc = fs::path("/proc") / std::to_string(::getpid()) / "exe"; fs::exists(proc, ec)) self = proc;
+  const std::string base = fmt::format("{} time-session {} {} --tier {}", slurm::shell_quote(self.string()),
+                                       slurm::shell_quote(fs::absolute(ex.file).string()), slurm::shell_quote(timing.name),
+                                       to_string(tier));
+  return [base, part](const fs::path& runs_dir) {
+    std::string cmd = base + " --runs " + slurm::shell_quote(fs::absolute(runs_dir).string());
+    if (part >= 0) cmd += fmt::format(" --part {}", part + 1);
+    return std::system(cmd.c_str()) == 0;
+  };
+}
 
 std::unique_ptr<Scope> run_scope(const fs::path& run_file) { return std::make_unique<RunScope>(run_file); }
 
@@ -214,6 +291,19 @@ const char* to_string(Verdict verdict) {
     case Verdict::NotTestable: return "not testable";
     case Verdict::SetupUnknown: return "setup unknown";
     case Verdict::Identity: return "identity";
+    case Verdict::NotShown: return "not shown able to fail";
+  }
+  return "?";
+}
+
+const char* to_string(CanFail c) {
+  switch (c) {
+    case CanFail::NotDecided: return "not decided";
+    case CanFail::Shown: return "yes";
+    case CanFail::NotFlipped: return "no: its counterfactual did not flip the rule";
+    case CanFail::NoVariation: return "no: the measures it compares do not vary beyond round-off";
+    case CanFail::ByConstruction: return "no: an identity by construction";
+    case CanFail::NoCounterfactual: return "not shown: no counterfactual";
   }
   return "?";
 }
@@ -257,11 +347,51 @@ std::vector<PlannedRun> plan_runs(const Experiment& ex, const EvaluateOptions& o
       out.push_back(std::move(p));
     }
   }
+  for (const VariedRun& v : varied_runs(ex)) {
+    const Experiment variant = ex.with_variant({*v.variant});
+    const RunSpec& run = *variant.find_run(v.run);
+    if (variant.timing_only(run)) continue;
+    const int trials = variant.trials(run, options.tier);
+    for (int trial = 0; trial < trials; ++trial) {
+      PlannedRun p;
+      p.experiment = ex.id;
+      p.run = v.key;
+      p.trial = trial;
+      p.scenario = config::resolve_scenario(variant.scenario_of(run)).string();
+      p.overrides = variant.overrides(run, options.tier, trial);
+      p.file = options.runs_dir / ex.id / "counterfactual" / (trial_stem(run, trials, trial, v.key) + ".h5");
+      const config::Config cfg = config::load(p.scenario, p.overrides);
+      check_solver_names(cfg);
+      p.config_toml = cfg.to_toml();
+      p.current = run_is_current(p.file, p.config_toml);
+      out.push_back(std::move(p));
+    }
+  }
+  return out;
+}
+
+std::string variant_key(const RunVariant& v) {
+  std::string text = v.scenario + "\n";
+  for (const config::Override& o : v.set) text += o.path + "=" + o.value_text + "\n";
+  return v.run + "-" + sha256_hex(text).substr(0, 12);
+}
+
+std::vector<VariedRun> varied_runs(const Experiment& ex) {
+  std::vector<VariedRun> out;
+  for (const PartSpec& p : ex.parts) {
+    if (!p.counterfactual) continue;
+    for (const RunVariant& v : p.counterfactual->runs) {
+      const std::string key = variant_key(v);
+      if (std::none_of(out.begin(), out.end(), [&](const VariedRun& o) { return o.key == key; }))
+        out.push_back({v.run, key, &v});
+    }
+  }
   return out;
 }
 
 Verdict combine_verdicts(const std::vector<PartResult>& parts) {
   bool supported = false, contradicted = false, inconclusive = false, unknown = false, identity = false;
+  bool not_shown = false;
   for (const PartResult& p : parts) {
     if (p.beyond) continue;
     supported = supported || p.verdict == Verdict::Supported;
@@ -269,12 +399,14 @@ Verdict combine_verdicts(const std::vector<PartResult>& parts) {
     inconclusive = inconclusive || p.verdict == Verdict::Inconclusive;
     unknown = unknown || p.verdict == Verdict::SetupUnknown;
     identity = identity || p.verdict == Verdict::Identity;
+    not_shown = not_shown || p.verdict == Verdict::NotShown;
   }
   if (supported && contradicted) return Verdict::Mixed;
   if (supported) return Verdict::Supported;
   if (contradicted) return Verdict::Contradicted;
   if (inconclusive) return Verdict::Inconclusive;
   if (unknown) return Verdict::SetupUnknown;
+  if (not_shown) return Verdict::NotShown;
   if (identity) return Verdict::Identity;
   return Verdict::NotTestable;
 }
@@ -299,7 +431,132 @@ std::string number_text(double v) {
 
 }  // namespace
 
+namespace {
+PartResult decide_on_runs(const Experiment& ex, const PartSpec& p, const ClaimResult& result);
+
+// The measures a rule compares: those it reads (through derived measures) that take the same
+// value over different runs (the same expression, combined the same way), in groups of two or
+// more. Returns "" when some group varies beyond round-off (or there is none), else the groups
+// with their values and spread.
+std::string compared_without_variation(const Experiment& ex, const PartSpec& p, const ClaimResult& result) {
+  if (!p.rule) return "";
+  PartSpec rule_only;
+  rule_only.rule = p.rule;
+  std::map<std::string, std::vector<const MeasureResult*>> groups;
+  for (const std::string& name : ex.measures_read(rule_only)) {
+    const MeasureSpec& m = *ex.find_measure(name);
+    if (m.run.empty()) continue;
+    for (const MeasureResult& mr : result.measures)
+      if (mr.name == name) groups[m.value.text() + "|" + m.over_trials].push_back(&mr);
+  }
+  std::vector<std::string> flat;
+  bool any = false;
+  for (const auto& [key, members] : groups) {
+    std::set<std::string> runs;
+    for (const MeasureResult* m : members) runs.insert(m->run);
+    if (members.size() < 2 || runs.size() < 2) continue;
+    double lo = members.front()->value, hi = lo, scale = 0.0;
+    for (const MeasureResult* m : members) {
+      if (!std::isfinite(m->value)) return "";
+      lo = std::min(lo, m->value), hi = std::max(hi, m->value), scale = std::max(scale, std::abs(m->value));
+    }
+    if (hi - lo > kRoundOff * scale) return "";  // this comparison varies
+    any = true;
+    std::vector<std::string> shown;
+    for (const MeasureResult* m : members) shown.push_back(fmt::format("{} = {}", m->name, number_text(m->value)));
+    flat.push_back(fmt::format("{} (spread {:.2g})", fmt::join(shown, ", "), hi - lo));
+  }
+  return any ? fmt::format("{}", fmt::join(flat, "; ")) : "";
+}
+
+// The measures a rule reads on a result, as "name = value; ...".
+std::string rule_measures(const PartSpec& p, const ClaimResult& result) {
+  std::vector<std::string> shown;
+  if (!p.rule) return "";
+  std::vector<std::string> names = p.rule->scalar_names();
+  if (p.requires_)
+    for (const std::string& n : p.requires_->scalar_names())
+      if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
+  for (const std::string& n : names)
+    for (const MeasureResult& m : result.measures)
+      if (m.name == n)
+        shown.push_back(m.interval ? fmt::format("{} = {} [{}, {}]", n, number_text(m.value), number_text(m.lo),
+                                                 number_text(m.hi))
+                                   : fmt::format("{} = {}", n, number_text(m.value)));
+  return fmt::format("{}", fmt::join(shown, "; "));
+}
+}  // namespace
+
 PartResult decide_part(const Experiment& ex, const PartSpec& p, const ClaimResult& result) {
+  PartResult pr = decide_on_runs(ex, p, result);
+  pr.measured = pr.verdict;
+  return pr;
+}
+
+void check_can_fail(const Experiment& ex, const PartSpec& p, const ClaimResult& result, const PartResult* variant,
+                    PartResult& pr) {
+  const bool decided = pr.measured == Verdict::Supported || pr.measured == Verdict::Contradicted;
+  if (p.counterfactual) {
+    std::vector<std::string> texts;
+    for (const RunVariant& v : p.counterfactual->runs) texts.push_back(variant_text(v));
+    pr.has_counterfactual = true;
+    pr.counterfactual_why = p.counterfactual->why;
+    pr.counterfactual_variant = fmt::format("{}", fmt::join(texts, "; "));
+  }
+  if (variant != nullptr) {
+    pr.counterfactual_verdict = variant->measured;
+    pr.counterfactual_outcome = variant->outcome;
+    pr.counterfactual_reason = variant->reason;
+  }
+  if (!p.identity.empty() && (pr.verdict == Verdict::Identity || decided)) {
+    pr.can_fail = CanFail::ByConstruction;
+    return;
+  }
+  if (!decided) {
+    pr.can_fail = CanFail::NotDecided;
+    return;
+  }
+  if (!p.counterfactual) {
+    pr.can_fail = CanFail::NoCounterfactual;
+    if (pr.verdict == Verdict::Supported || pr.verdict == Verdict::Contradicted) {
+      pr.verdict = Verdict::NotShown;
+      pr.reason = fmt::format("the rule {} here, but no counterfactual shows that it could have {}",
+                              pr.measured == Verdict::Supported ? "holds" : "does not hold",
+                              pr.measured == Verdict::Supported ? "failed" : "held");
+    }
+    return;
+  }
+  const bool flipped = variant != nullptr &&
+                       (variant->measured == Verdict::Supported || variant->measured == Verdict::Contradicted) &&
+                       variant->measured != pr.measured;
+  if (!flipped) {
+    pr.can_fail = CanFail::NotFlipped;
+    if (pr.verdict == Verdict::Supported || pr.verdict == Verdict::Contradicted) {
+      pr.verdict = Verdict::Identity;
+      pr.reason = fmt::format(
+          "its counterfactual ({}) leaves the rule {}{}: not shown able to fail", pr.counterfactual_variant,
+          variant == nullptr ? "unevaluated"
+          : variant->measured == pr.measured ? (pr.measured == Verdict::Supported ? "holding" : "not holding")
+                                             : std::string("undecided (") + to_string(variant->measured) + ")",
+          variant != nullptr && !variant->reason.empty() ? ", " + variant->reason : "");
+    }
+    return;
+  }
+  const std::string flat = compared_without_variation(ex, p, result);
+  if (!flat.empty()) {
+    pr.can_fail = CanFail::NoVariation;
+    pr.compared_spread = flat;
+    if (pr.verdict == Verdict::Supported || pr.verdict == Verdict::Contradicted) {
+      pr.verdict = Verdict::Identity;
+      pr.reason = "the measures its rule compares do not vary beyond round-off across their runs: " + flat;
+    }
+    return;
+  }
+  pr.can_fail = CanFail::Shown;
+}
+
+namespace {
+PartResult decide_on_runs(const Experiment& ex, const PartSpec& p, const ClaimResult& result) {
   PartResult pr;
   pr.says = p.says;
   pr.quote = p.quote;
@@ -377,6 +634,16 @@ PartResult decide_part(const Experiment& ex, const PartSpec& p, const ClaimResul
     for (size_t k = 0; k < t.runs.size(); ++k)
       if (std::find(runs.begin(), runs.end(), t.runs[k]) != runs.end() && t.status[k] != "complete")
         return inconclusive(fmt::format("the timed run {} ended {}", t.runs[k], t.status[k]));
+  // A timing verdict needs the spread between processes (experiments/timing.hpp).
+  for (const std::string& name : measures) {
+    const MeasureSpec& m = *ex.find_measure(name);
+    if (m.timing.empty()) continue;
+    for (const TimingResult& t : result.timings)
+      if (t.group == m.timing && t.processes < kTimingSessions)
+        return inconclusive(fmt::format("timing group {} was timed in {} separate process{}; a timing verdict "
+                                        "needs {}",
+                                        t.group, t.processes, t.processes == 1 ? "" : "es", kTimingSessions));
+  }
   if (p.requires_) {
     const double ok = p.requires_->evaluate(scope);
     if (std::isnan(ok) || ok == 0.0)
@@ -422,6 +689,67 @@ PartResult decide_part(const Experiment& ex, const PartSpec& p, const ClaimResul
   return pr;
 }
 
+}  // namespace
+
+std::vector<MeasureResult> compute_measures(const Experiment& ex, const std::vector<RunResult>& runs,
+                                            const std::vector<TimingResult>& timings) {
+  std::vector<MeasureResult> measures;
+  // In file order: a derived measure reads only those above it.
+  for (const MeasureSpec& m : ex.measures) {
+    MeasureResult mr;
+    mr.name = m.name;
+    mr.run = m.run;
+    mr.timing = m.timing;
+    mr.units = m.units;
+    mr.doc = m.doc;
+    mr.expression = m.value.text();
+    mr.over_trials = m.over_trials;
+    if (!m.timing.empty()) {
+      const auto it = std::find_if(timings.begin(), timings.end(),
+                                   [&](const TimingResult& t) { return t.group == m.timing; });
+      for (size_t r = 0; r < it->seconds_per_step.size(); ++r) {
+        Expression::Checked c = m.value.evaluate_checked(RepeatScope(*it, r, measures));
+        if (mr.nonfinite.empty()) mr.nonfinite = std::move(c.nonfinite);
+        mr.trials.push_back(c.value);
+      }
+      const bool any_nan = std::any_of(mr.trials.begin(), mr.trials.end(), [](double v) { return std::isnan(v); });
+      const MedianInterval mi = timing_interval(*it, mr.trials);
+      mr.interval = true;
+      mr.value = any_nan ? kNaN : mi.median;
+      mr.lo = any_nan ? kNaN : mi.lo;
+      mr.hi = any_nan ? kNaN : mi.hi;
+      mr.coverage = mi.coverage;
+    } else if (m.run.empty()) {
+      Expression::Checked c = m.value.evaluate_checked(MeasureScope(measures));
+      mr.value = c.value;
+      mr.nonfinite = std::move(c.nonfinite);
+      const std::vector<std::string> inputs = interval_inputs(m.value, measures);
+      if (!inputs.empty()) {
+        mr.interval = true;
+        mr.lo = mr.hi = mr.value;
+        for (double v : corner_values(m.value, measures, inputs)) {
+          if (std::isnan(v)) {
+            mr.lo = mr.hi = kNaN;
+            break;
+          }
+          mr.lo = std::min(mr.lo, v);
+          mr.hi = std::max(mr.hi, v);
+        }
+      }
+    } else {
+      const auto it = std::find_if(runs.begin(), runs.end(), [&](const RunResult& r) { return r.name == m.run; });
+      for (const fs::path& file : it->files) {
+        Expression::Checked c = m.value.evaluate_checked(RunScope(file));
+        if (mr.nonfinite.empty()) mr.nonfinite = std::move(c.nonfinite);
+        mr.trials.push_back(c.value);
+      }
+      mr.value = combine(m.over_trials, mr.trials);
+    }
+    measures.push_back(std::move(mr));
+  }
+  return measures;
+}
+
 ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   ClaimResult result;
@@ -436,113 +764,61 @@ ClaimResult evaluate_claim(const Experiment& ex, const EvaluateOptions& options)
   result.setup = ex.setup;
   const fs::path dir = options.runs_dir / ex.id;
 
-  // The runs, trial by trial.
-  for (const RunSpec& run : ex.runs) {
-    RunResult rr;
-    rr.name = run.name;
-    rr.timing_only = ex.timing_only(run);
-    {
-      const config::Config cfg = config::load(ex.scenario_of(run), ex.overrides(run, options.tier, 0));
-      rr.solver = cfg.get_string("solver.name");
-      if (rr.solver == "pbd-seed") rr.seed_fixes = cfg.get_strings("solver.seed.fixes");
-    }
-    const int trials = rr.timing_only ? 0 : ex.trials(run, options.tier);
-    for (int trial = 0; trial < trials; ++trial) {
-      const fs::path file = dir / (trial_stem(run, trials, trial) + ".h5");
-      const config::Config cfg = config::load(ex.scenario_of(run), ex.overrides(run, options.tier, trial));
-      rr.files.push_back(file);
-      if (!options.force && run_is_current(file, cfg.to_toml())) {
-        ++rr.reused;
-      } else {
-        const auto tr = std::chrono::steady_clock::now();
-        const RunOutcome outcome = run_config(cfg, file);
-        rr.wall_time += seconds_since(tr);
-        if (outcome.status == RunStatus::Failed && rr.first_failure.empty()) rr.first_failure = outcome.reason;
-      }
-      const RunFileData header = read_run_file(file, false);
-      const std::string status = header.status();
-      if (const std::vector<std::string> w = header.warnings(); !w.empty()) {
-        if (rr.warned++ == 0) rr.first_warning = w.front();
-      }
-      if (status == "complete") ++rr.complete;
-      else if (status == "exploded") ++rr.exploded;
-      else if (status == "failed") ++rr.failed;
-      else ++rr.incomplete;
-    }
-    if (options.log != nullptr && !rr.timing_only) {
-      *options.log << fmt::format("  {} {}: {} trial{} ({} complete, {} exploded, {} failed{}), {:.2f} s{}\n",
-                                  ex.id, run.name, trials, trials == 1 ? "" : "s", rr.complete,
-                                  rr.exploded, rr.failed,
-                                  rr.incomplete > 0 ? fmt::format(", {} incomplete", rr.incomplete) : "",
-                                  rr.wall_time, rr.reused > 0 ? fmt::format(" ({} reused)", rr.reused) : "");
-      if (!rr.first_failure.empty()) *options.log << "    first failure: " << rr.first_failure << "\n";
-      if (rr.warned > 0)
-        *options.log << fmt::format("    {} trial{} with warnings; first: {}\n", rr.warned,
-                                    rr.warned == 1 ? "" : "s", rr.first_warning);
-    }
-    result.runs.push_back(std::move(rr));
-  }
-
-  // The timing groups.
+  for (const RunSpec& run : ex.runs) result.runs.push_back(make_run(ex, run, dir, run.name, options));
   for (const TimingSpec& t : ex.timings)
-    result.timings.push_back(time_group(ex, t, options.tier, options.runs_dir, options.force, options.log));
-
-  // The measures, in file order (a derived measure reads only those above it).
-  for (const MeasureSpec& m : ex.measures) {
-    MeasureResult mr;
-    mr.name = m.name;
-    mr.run = m.run;
-    mr.timing = m.timing;
-    mr.units = m.units;
-    mr.doc = m.doc;
-    mr.expression = m.value.text();
-    mr.over_trials = m.over_trials;
-    if (!m.timing.empty()) {
-      const auto it = std::find_if(result.timings.begin(), result.timings.end(),
-                                   [&](const TimingResult& t) { return t.group == m.timing; });
-      for (size_t r = 0; r < it->seconds_per_step.size(); ++r) {
-        Expression::Checked c = m.value.evaluate_checked(RepeatScope(*it, r, result.measures));
-        if (mr.nonfinite.empty()) mr.nonfinite = std::move(c.nonfinite);
-        mr.trials.push_back(c.value);
-      }
-      const bool any_nan = std::any_of(mr.trials.begin(), mr.trials.end(), [](double v) { return std::isnan(v); });
-      const MedianInterval mi = median_interval(mr.trials);
-      mr.interval = true;
-      mr.value = any_nan ? kNaN : mi.median;
-      mr.lo = any_nan ? kNaN : mi.lo;
-      mr.hi = any_nan ? kNaN : mi.hi;
-      mr.coverage = mi.coverage;
-    } else if (m.run.empty()) {
-      Expression::Checked c = m.value.evaluate_checked(MeasureScope(result.measures));
-      mr.value = c.value;
-      mr.nonfinite = std::move(c.nonfinite);
-      const std::vector<std::string> inputs = interval_inputs(m.value, result.measures);
-      if (!inputs.empty()) {
-        mr.interval = true;
-        mr.lo = mr.hi = mr.value;
-        for (double v : corner_values(m.value, result.measures, inputs)) {
-          if (std::isnan(v)) {
-            mr.lo = mr.hi = kNaN;
-            break;
-          }
-          mr.lo = std::min(mr.lo, v);
-          mr.hi = std::max(mr.hi, v);
-        }
-      }
-    } else {
-      const auto it = std::find_if(result.runs.begin(), result.runs.end(),
-                                   [&](const RunResult& r) { return r.name == m.run; });
-      for (const fs::path& file : it->files) {
-        Expression::Checked c = m.value.evaluate_checked(RunScope(file));
-        if (mr.nonfinite.empty()) mr.nonfinite = std::move(c.nonfinite);
-        mr.trials.push_back(c.value);
-      }
-      mr.value = combine(m.over_trials, mr.trials);
-    }
-    result.measures.push_back(std::move(mr));
-  }
-
+    result.timings.push_back(time_group(ex, t, options.tier, options.runs_dir, options.force && !options.timings_made,
+                                        options.log,
+                                        session_launcher(options.executable, ex, t, options.tier)));
+  result.measures = compute_measures(ex, result.runs, result.timings);
   for (const PartSpec& p : ex.parts) result.parts.push_back(decide_part(ex, p, result));
+
+  // The counterfactuals: each varied run made once, shared between the parts that vary it alike;
+  // a timing group timed again under each distinct set of varied runs it times.
+  std::map<std::string, RunResult> varied;
+  std::map<std::string, TimingResult> retimed;
+  for (size_t k = 0; k < ex.parts.size(); ++k) {
+    const PartSpec& p = ex.parts[k];
+    if (!p.counterfactual || !p.rule) {
+      check_can_fail(ex, p, result, nullptr, result.parts[k]);
+      continue;
+    }
+    const Experiment variant = ex.with_variant(p.counterfactual->runs);
+    ClaimResult vr = result;
+    std::map<std::string, std::string> keys;  // run -> variant key
+    for (const RunVariant& v : p.counterfactual->runs) {
+      const std::string key = variant_key(v);
+      keys[v.run] = key;
+      auto it = varied.find(key);
+      if (it == varied.end())
+        it = varied.emplace(key, make_run(variant, *variant.find_run(v.run), dir / "counterfactual", key, options)).first;
+      for (RunResult& r : vr.runs)
+        if (r.name == v.run) r = it->second;
+    }
+    // The timing groups the part reads (through derived measures): only those are timed again.
+    std::set<std::string> timed;
+    for (const std::string& name : ex.measures_read(p))
+      if (const MeasureSpec* m = ex.find_measure(name); m != nullptr && !m->timing.empty()) timed.insert(m->timing);
+    for (size_t t = 0; t < ex.timings.size(); ++t) {
+      const TimingSpec& spec = ex.timings[t];
+      if (!timed.count(spec.name)) continue;
+      std::string group_key;
+      for (const std::string& r : spec.runs)
+        if (keys.count(r)) group_key += keys[r] + "+";
+      if (group_key.empty()) continue;
+      group_key = spec.name + "-" + sha256_hex(group_key).substr(0, 12);
+      auto it = retimed.find(group_key);
+      if (it == retimed.end())
+        it = retimed.emplace(group_key, time_group(variant, spec, options.tier, dir / "counterfactual" / group_key,
+                                                   options.force, options.log,
+                                                   session_launcher(options.executable, ex, spec, options.tier,
+                                                                    static_cast<int>(k)))).first;
+      vr.timings[t] = it->second;
+    }
+    vr.measures = compute_measures(variant, vr.runs, vr.timings);
+    const PartResult decided = decide_part(variant, p, vr);
+    result.parts[k].counterfactual_measured = rule_measures(p, vr);
+    check_can_fail(ex, p, result, &decided, result.parts[k]);
+  }
   result.verdict = combine_verdicts(result.parts);
   result.wall_time = seconds_since(t0);
   return result;

@@ -16,8 +16,18 @@
 //                                             rule's outcome changes within the 95 % interval of a
 //                                             timing measure it reads
 //               not testable                  the part says why, or a measure it reads is NaN
-//               identity                      (reproductions) the check holds by construction
+//               identity                      the check holds by construction (the part says
+//                                             why), its counterfactual did not flip its rule, or
+//                                             the measures its rule compares do not vary beyond
+//                                             round-off across their runs (shown, never counted)
+//               not shown able to fail        decided, but the part has no counterfactual yet
+//                                             (shown, never counted)
 //               setup unknown                 (reproductions) the paper's setup is not known
+//   counterfactuals  each part's [part.counterfactual]: the runs it names made again with its
+//             overrides (each distinct variant once per experiment, shared between parts), the
+//             timing groups that time a varied run timed again, the measures recomputed, the rule
+//             and `requires` decided on the variant. A decided verdict counts only when the
+//             variant gives the other decided verdict (docs/experiments.md).
 //   verdict   of the experiment, from its decided parts in the article's regime (regime =
 //             "article"): supported when all are supported, contradicted when all are
 //             contradicted, mixed when both occur, else inconclusive or not testable
@@ -34,10 +44,11 @@
 
 namespace pbdbench::experiments {
 
-enum class Verdict { Supported, Contradicted, Mixed, Inconclusive, NotTestable, SetupUnknown, Identity };
-inline constexpr int kVerdictCount = 7;
+enum class Verdict { Supported, Contradicted, Mixed, Inconclusive, NotTestable, SetupUnknown, Identity, NotShown };
+inline constexpr int kVerdictCount = 8;
 const char* to_string(Verdict verdict);  // "supported", "contradicted", "mixed", "inconclusive",
-                                         // "not testable", "setup unknown", "identity"
+                                         // "not testable", "setup unknown", "identity",
+                                         // "not shown able to fail"
 // The word a report uses: a claim is "supported" or "contradicted", a reproduction "reproduced"
 // or "not reproduced"; the other words are the same for both.
 const char* verdict_word(Verdict verdict, ExperimentKind kind);
@@ -77,6 +88,22 @@ struct MeasureResult {
   std::string nonfinite;
 };
 
+// Whether a decided part was shown able to fail.
+enum class CanFail {
+  NotDecided,        // the part's own verdict is not supported or contradicted
+  Shown,             // its counterfactual gave the other verdict
+  NotFlipped,        // its counterfactual gave the same verdict, or none
+  NoVariation,       // the measures its rule compares agree to round-off across their runs
+  ByConstruction,    // the part says it is an identity
+  NoCounterfactual,  // it has none yet
+};
+const char* to_string(CanFail can_fail);  // "not decided", "yes", "no: ...", ...
+
+// Two values of a measure differ "beyond round-off" when they differ by more than this, relative
+// to the larger magnitude (a double's rounding accumulated over a run is far below it; a float
+// solver's is near 1e-7).
+inline constexpr double kRoundOff = 1e-6;
+
 struct PartResult {
   std::string says;
   std::string quote, translation, reading;  // claims
@@ -94,6 +121,19 @@ struct PartResult {
   Verdict verdict = Verdict::NotTestable;
   std::string reason;     // why inconclusive, not testable, an identity or setup unknown
   std::vector<std::string> judged_with;  // the runs it reads: "name (solver, fixes)"
+  // The rule's verdict on the runs before the counterfactual's check (supported, contradicted,
+  // inconclusive, ...); `verdict` is what is counted.
+  Verdict measured = Verdict::NotTestable;
+  // The counterfactual ("" / false when the part has none).
+  bool has_counterfactual = false;
+  std::string counterfactual_why;
+  std::string counterfactual_variant;       // "run: key = value, ...; run: scenario = ..."
+  Verdict counterfactual_verdict = Verdict::NotTestable;  // the rule on the variant
+  double counterfactual_outcome = 0.0;      // 1 holds, 0 does not, NaN not measured
+  std::string counterfactual_reason;        // why the variant's verdict is not decided
+  std::string counterfactual_measured;      // the variant's measures the rule reads
+  CanFail can_fail = CanFail::NotDecided;
+  std::string compared_spread;              // NoVariation: the measures and their spread
 };
 
 struct ClaimResult {
@@ -119,13 +159,34 @@ struct EvaluateOptions {
   std::filesystem::path runs_dir;  // run files go to <runs_dir>/<id>/<run>[-<trial>].h5
   bool force = false;              // run again even when a current run file exists
   std::ostream* log = nullptr;     // a line per run
+  // pbdbench, to time each session of a timing group in a process of its own
+  // (`pbdbench time-session`); "" times them in this process, and a part that reads them is then
+  // inconclusive (experiments/timing.hpp: kTimingSessions processes).
+  std::filesystem::path executable;
+  bool timings_made = false;  // the experiments' timing groups were just timed: read, even when forced
 };
+
+// Launches `pbdbench time-session FILE GROUP --tier T --runs DIR [--part K]` (K from 1: the
+// group of part K's counterfactual variant); empty when `executable` is.
+SessionLauncher session_launcher(const std::filesystem::path& executable, const Experiment& experiment,
+                                 const TimingSpec& timing, Tier tier, int part = -1);
 
 ClaimResult evaluate_claim(const Experiment& experiment, const EvaluateOptions& options);
 
 // Decides one part of `experiment` from the runs, timings and measures already in `measured` (what
 // evaluate_claim() does for each part once they are in).
 PartResult decide_part(const Experiment& experiment, const PartSpec& part, const ClaimResult& measured);
+
+// Applies the counterfactual check to a part decided on the runs (`decided` from decide_part()):
+// sets its counterfactual fields from `variant` (the part decided on its counterfactual's
+// variant; nullptr when it has none) and turns a decided verdict into an identity or "not shown
+// able to fail" when it was not shown able to fail.
+void check_can_fail(const Experiment& experiment, const PartSpec& part, const ClaimResult& measured,
+                    const PartResult* variant, PartResult& decided);
+
+// The measures an experiment computes from its runs' files and its timing groups (in file order).
+std::vector<MeasureResult> compute_measures(const Experiment& experiment, const std::vector<RunResult>& runs,
+                                            const std::vector<TimingResult>& timings);
 
 // The run files an experiment needs in a tier, in a stable order (runs, then trials), with the
 // configuration each must hold; `current` when the file already holds it from this build. (When
@@ -141,7 +202,18 @@ struct PlannedRun {
   std::string config_toml;  // the configuration the file must hold
   bool current = false;
 };
+// The runs of the counterfactuals' variants come after, in <runs_dir>/<id>/counterfactual/.
 std::vector<PlannedRun> plan_runs(const Experiment& experiment, const EvaluateOptions& options);
+
+// The distinct variants of an experiment's counterfactuals, each varied run once: its key (the
+// run's name and a hash of its scenario and overrides), used for the file names.
+struct VariedRun {
+  std::string run;
+  std::string key;  // "<run>-<12 hex digits>"
+  const RunVariant* variant = nullptr;
+};
+std::vector<VariedRun> varied_runs(const Experiment& experiment);
+std::string variant_key(const RunVariant& variant);
 
 // A run file as the scope of a measure's expression: its series (width-3 ones by component,
 // name.x), and the run scalars of experiments/experiment.hpp (exploded, wall_time, ...). Throws

@@ -264,6 +264,19 @@ bool Experiment::timing_only(const RunSpec& run) const {
   return true;
 }
 
+Experiment Experiment::with_variant(const std::vector<RunVariant>& variant) const {
+  Experiment out = *this;
+  for (const RunVariant& v : variant)
+    for (RunSpec& run : out.runs) {
+      if (run.name != v.run) continue;
+      if (!v.scenario.empty()) run.scenario = v.scenario;
+      // Last in both tiers: after the run's set, and after the quick sets in the quick tier.
+      run.set.insert(run.set.end(), v.set.begin(), v.set.end());
+      run.quick_set.insert(run.quick_set.end(), v.set.begin(), v.set.end());
+    }
+  return out;
+}
+
 std::vector<config::Override> Experiment::timing_overrides(const RunSpec& run, const TimingSpec& timing,
                                                            Tier tier) const {
   std::vector<config::Override> out = overrides(run, tier, 0);
@@ -467,10 +480,10 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
       if (!measure_names.count(s)) fail(file, line, key, "no measure named '" + s + "'");
   };
   for (const toml::table* t : array_of_tables(root, "part", file)) {
-    std::vector<std::string> known = {"says", "rule", "untestable", "requires", "requires_why"};
+    std::vector<std::string> known = {"says", "rule", "untestable", "requires", "requires_why", "identity",
+                                      "counterfactual"};
     const std::vector<std::string> only = claim ? std::vector<std::string>{"quote", "translation", "judges", "regime", "reading", "truth"}
-                                                : std::vector<std::string>{"published", "source", "ours", "identity",
-                                                                           "setup_unknown"};
+                                                : std::vector<std::string>{"published", "source", "ours", "setup_unknown"};
     known.insert(known.end(), only.begin(), only.end());
     const TableReader r(*t, file, "part.", known);
     PartSpec p;
@@ -491,6 +504,62 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
     } else if (r.node("requires_why") != nullptr) {
       fail(file, p.line, "part.requires_why", "a reason without a `requires` condition");
     }
+    p.identity = r.string("identity", false);
+    if (!p.identity.empty() && !has_rule)
+      fail(file, p.line, "part.identity", "an identity still has a rule (it is run and shown, never counted)");
+    if (const toml::node* c = r.node("counterfactual")) {
+      if (!has_rule) fail(file, line_of(*c), "part.counterfactual", "an untestable part has no rule to flip");
+      if (!p.identity.empty())
+        fail(file, line_of(*c), "part.counterfactual",
+             "a part is an identity by construction or has a counterfactual, not both");
+      const TableReader cr(as_table(*c, file, "part.counterfactual"), file, "part.counterfactual.",
+                           {"why", "runs", "expect"});
+      CounterfactualSpec cf;
+      cf.line = cr.line();
+      cf.why = cr.string("why", true);
+      cf.expect = cr.string("expect", false, "flip");
+      if (cf.expect != "flip")
+        fail(file, cf.line, "part.counterfactual.expect", "'" + cf.expect + "' is not one of flip");
+      const toml::node* runs_node = cr.node("runs");
+      if (runs_node == nullptr) fail(file, cf.line, "part.counterfactual.runs", "missing");
+      const toml::table& runs_table = as_table(*runs_node, file, "part.counterfactual.runs");
+      if (runs_table.empty())
+        fail(file, line_of(*runs_node), "part.counterfactual.runs", "a counterfactual varies at least one run");
+      for (auto&& [key, node] : runs_table) {
+        const std::string name(key.str());
+        const int line = static_cast<int>(key.source().begin.line);
+        const std::string where = "part.counterfactual.runs." + name;
+        if (ex.find_run(name) == nullptr) fail(file, line, where, "no run named '" + name + "'");
+        if (!node.is_table())
+          fail(file, line, where, "must be a table of overrides (\"path\" = value, \"scenario\" = name)");
+        RunVariant v;
+        v.run = name;
+        try {
+          for (const config::FlatEntry& e : config::flatten_table(*node.as_table())) {
+            if (e.path == "scenario") {
+              if (!e.node->is_string()) fail(file, e.line, where + ".scenario", "must be a string");
+              v.scenario = e.node->as_string()->get();
+            } else {
+              v.set.push_back({e.path, config::toml_value_text(*e.node, file)});
+            }
+          }
+        } catch (const config::ConfigError& e) {
+          fail(file, e.source().line, where, e.what());
+        }
+        if (v.set.empty() && v.scenario.empty()) fail(file, line, where, "varies nothing");
+        cf.runs.push_back(std::move(v));
+      }
+      // The variant must change a run the part reads, or it cannot change the verdict.
+      bool reads = false;
+      std::set<std::string> read_runs;
+      for (const std::string& m : ex.measures_read(p))
+        for (const std::string& rn : ex.runs_read(*ex.find_measure(m))) read_runs.insert(rn);
+      for (const RunVariant& v : cf.runs) reads = reads || read_runs.count(v.run) > 0;
+      if (!reads)
+        fail(file, cf.line, "part.counterfactual.runs",
+             "varies no run the part reads (" + fmt::format("{}", fmt::join(read_runs, ", ")) + ")");
+      p.counterfactual = std::move(cf);
+    }
     if (claim) {
       p.quote = r.string("quote", true);
       p.translation = r.string("translation", true);
@@ -510,12 +579,11 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
       p.ours = r.string("ours", false);
       if (!p.ours.empty() && !measure_names.count(p.ours))
         fail(file, p.line, "part.ours", "no measure named '" + p.ours + "'");
-      p.identity = r.string("identity", false);
       p.setup_unknown = r.string("setup_unknown", false);
       if (!p.identity.empty() && !p.setup_unknown.empty())
         fail(file, p.line, "part", "a part is an identity or has an unknown setup, not both");
-      if ((!p.identity.empty() || !p.setup_unknown.empty()) && !has_rule)
-        fail(file, p.line, "part", "an identity or a part with an unknown setup still has a rule (it is run and shown)");
+      if (!p.setup_unknown.empty() && !has_rule)
+        fail(file, p.line, "part", "a part with an unknown setup still has a rule (it is run and shown)");
     }
     ex.parts.push_back(std::move(p));
   }
@@ -552,6 +620,23 @@ Experiment load_experiment(const fs::path& file, bool check_configs) {
           check_solver_names(config::load(ex.scenario_of(run), ex.overrides(run, tier, 0)));
         } catch (const config::ConfigError& e) {
           fail(file, run.line, "run", fmt::format("run '{}' ({} tier): {}", run.name, to_string(tier), e.what()));
+        }
+      }
+    }
+    // Each counterfactual's varied runs load and validate in both tiers (a variant may break the
+    // listing on purpose: the judges check below is not theirs).
+    for (const PartSpec& p : ex.parts) {
+      if (!p.counterfactual) continue;
+      const Experiment variant = ex.with_variant(p.counterfactual->runs);
+      for (const RunVariant& v : p.counterfactual->runs) {
+        const RunSpec& run = *variant.find_run(v.run);
+        for (Tier tier : {Tier::Full, Tier::Quick}) {
+          try {
+            check_solver_names(config::load(variant.scenario_of(run), variant.overrides(run, tier, 0)));
+          } catch (const config::ConfigError& e) {
+            fail(file, p.counterfactual->line, "part.counterfactual.runs." + v.run,
+                 fmt::format("the variant of run '{}' ({} tier): {}", v.run, to_string(tier), e.what()));
+          }
         }
       }
     }

@@ -65,7 +65,10 @@
 //   published = "6 %"                  # reproductions: the published number, as printed,
 //   source = "sec. 6.2, fig. 5"        #   where it is printed,
 //   ours = "rate_sequential"           #   and the measure shown beside it
-//   identity = "why"                   # reproductions: holds by construction (not counted)
+//   identity = "why"                   # holds by construction (shown, not counted)
+//   [part.counterfactual]              # the variant that should give the other verdict (a
+//   why = "..."                        #   counted part needs one that flips: CounterfactualSpec)
+//   runs = { sequential = { "solver.order" = "shuffled" } }
 //   setup_unknown = "what"             # reproductions: the paper's setup cannot be recovered
 //   # untestable = "why"               # instead of a rule: not testable here, and why
 //   [figure]
@@ -162,6 +165,27 @@ const char* to_string(Judges judges);  // "listing", "method"
 // D11 (collisions tested in every iteration) are the article's design, kept.
 const std::vector<std::string>& repaired_listing_fixes();
 
+// A part's counterfactual: the variant of its runs under which its rule should give the other
+// verdict, so that a counted verdict is one that could have failed (docs/experiments.md).
+//   [part.counterfactual]
+//   why = "one sentence: why this variant should give the other verdict"
+//   runs = { e0 = { "solver.seed.fixes" = ["D8"] }, e01 = { "scenario" = "other" } }
+//   expect = "flip"                  # optional; the only expectation so far
+// Each named run is the experiment's run with these overrides applied last (after its own set
+// and, in the quick tier, its quick sets; the key "scenario" replaces its scenario); the runs
+// not named are read unchanged.
+struct RunVariant {
+  std::string run;
+  std::string scenario;                // "" keeps the run's
+  std::vector<config::Override> set;
+};
+struct CounterfactualSpec {
+  std::string why;
+  std::vector<RunVariant> runs;
+  std::string expect = "flip";
+  int line = 0;
+};
+
 struct PartSpec {
   std::string says;
   // Claims: the article's words and how they are read.
@@ -175,9 +199,10 @@ struct PartSpec {
   std::string published;  // the published number or relation, as printed
   std::string source;     // where it is printed (paper, section, figure or table)
   std::string ours;       // the measure shown beside the published number
-  std::string identity;        // why the check holds by construction ("" when it does not)
   std::string setup_unknown;   // what of the paper's setup cannot be recovered
   // Both.
+  std::string identity;        // why the check holds by construction ("" when it does not)
+  std::optional<CounterfactualSpec> counterfactual;  // the variant that should flip the rule
   std::optional<Expression> rule;  // absent when untestable
   std::string untestable;          // the reason, when the part cannot be tested here
   std::optional<Expression> requires_;  // must hold for the part to be decided
@@ -235,6 +260,9 @@ struct Experiment {
   bool reads_timing(const MeasureSpec& measure) const;
   // Runs that only timing groups read: their accuracy runs are not made.
   bool timing_only(const RunSpec& run) const;
+  // The experiment with the runs of a counterfactual varied: each named run's overrides applied
+  // after its own (both tiers), its scenario replaced when the variant names one.
+  Experiment with_variant(const std::vector<RunVariant>& variant) const;
 };
 
 class ExperimentError : public std::runtime_error {

@@ -170,6 +170,7 @@ RegistrationStatus registration_status(const std::vector<Registration>& registry
     if (r.experiment != id) continue;
     st.latest = &r;
     if (r.earlier) st.revisions.push_back(&r);
+    st.entries.push_back(&r);
   }
   if (st.latest == nullptr) {
     st.state = RegistrationStatus::State::Unregistered;

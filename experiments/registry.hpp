@@ -73,6 +73,7 @@ struct RegistrationStatus {
                                        // results' commit; nullopt when it cannot be checked
   std::string why_unchecked;           // when before_results is nullopt
   std::vector<const Registration*> revisions;  // entries that revised a version with results
+  std::vector<const Registration*> entries;    // every entry of the experiment, oldest first
 };
 
 RegistrationStatus registration_status(const std::vector<Registration>& registry,

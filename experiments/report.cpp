@@ -102,10 +102,70 @@ std::string measured(const ClaimResult& c, const PartResult& p) {
 
 std::string verdict_with_reason(const PartResult& p, ExperimentKind kind) {
   std::string v = fmt::format("**{}**", verdict_word(p.verdict, kind));
-  if (p.verdict == Verdict::Identity || p.verdict == Verdict::SetupUnknown)
+  if (p.verdict == Verdict::Identity || p.verdict == Verdict::SetupUnknown || p.verdict == Verdict::NotShown)
     v += fmt::format(" (the rule {} here)", std::isnan(p.outcome) ? "is not measured" : p.outcome != 0.0 ? "holds" : "does not hold");
   if (!p.reason.empty()) v += ": " + p.reason;
   return v;
+}
+
+// Whether the part could have failed, for a table cell.
+std::string can_fail_cell(const PartResult& p, ExperimentKind kind) {
+  switch (p.can_fail) {
+    case CanFail::NotDecided:
+      return p.has_counterfactual ? fmt::format("(counterfactual: {})", verdict_word(p.counterfactual_verdict, kind)) : "";
+    case CanFail::Shown: return fmt::format("yes (counterfactual: {})", verdict_word(p.counterfactual_verdict, kind));
+    case CanFail::NotFlipped:
+      return fmt::format("no (counterfactual: {})", verdict_word(p.counterfactual_verdict, kind));
+    case CanFail::NoVariation: return "no (no variation)";
+    case CanFail::ByConstruction: return "no (by construction)";
+    case CanFail::NoCounterfactual: return "not shown";
+  }
+  return "";
+}
+
+// The part's counterfactual, as a line of its section.
+std::string counterfactual_line(const PartResult& p, ExperimentKind kind) {
+  if (!p.has_counterfactual) {
+    if (p.can_fail == CanFail::ByConstruction) return "- Could fail: no, an identity by construction.\n";
+    if (p.can_fail == CanFail::NoCounterfactual) return "- Could fail: not shown (no counterfactual).\n";
+    return "";
+  }
+  std::string out = fmt::format("- Counterfactual: {} — {}. On the variant the rule gives **{}**", cell(p.counterfactual_variant),
+                                p.counterfactual_why, verdict_word(p.counterfactual_verdict, kind));
+  if (!p.counterfactual_reason.empty()) out += " (" + p.counterfactual_reason + ")";
+  if (!p.counterfactual_measured.empty()) out += "; measured there: " + p.counterfactual_measured;
+  out += fmt::format(". Could fail: {}.\n", to_string(p.can_fail));
+  return out;
+}
+
+// The parts shown but not counted: identities (by construction, a counterfactual that did not
+// flip, no variation) and parts not shown able to fail.
+void identity_section(std::ostringstream& md, const std::vector<ClaimResult>& items) {
+  std::string rows;
+  int identities = 0, not_shown = 0;
+  for (const ClaimResult& c : items)
+    for (size_t k = 0; k < c.parts.size(); ++k) {
+      const PartResult& p = c.parts[k];
+      if (p.verdict != Verdict::Identity && p.verdict != Verdict::NotShown) continue;
+      ++(p.verdict == Verdict::Identity ? identities : not_shown);
+      rows += fmt::format("| [{}](#{}) | {} | {} | {} | {} |\n", part_id(c, k), anchor(c.id), cell(p.says),
+                          code_cell(p.rule), verdict_word(p.verdict, c.kind),
+                          cell(p.reason.empty() ? to_string(p.can_fail) : p.reason));
+    }
+  md << "## Identities and parts not shown able to fail\n\n"
+     << "A verdict counts only when it could have come out the other way: each decided part names a "
+        "counterfactual, a variant of its runs under which its rule should give the other verdict, and the "
+        "variant is run in every tier. A part whose counterfactual does not flip its rule, whose compared "
+        "measures do not vary beyond round-off across their runs, or that holds by construction is an "
+        "**identity**; a decided part without a counterfactual is **not shown able to fail**. Both are shown "
+        "here and never counted (`docs/experiments.md`).\n\n";
+  if (rows.empty()) {
+    md << "None.\n\n";
+    return;
+  }
+  md << fmt::format("{} {}, {} not shown able to fail.\n\n", identities, identities == 1 ? "identity" : "identities",
+                    not_shown)
+     << "| part | says | rule | verdict | why |\n|---|---|---|---|---|\n" << rows << "\n";
 }
 
 std::string registration_text(const RegistrationStatus& st) {
@@ -144,6 +204,26 @@ std::string registration_cell(const RegistrationStatus* st) {
   if (st->before_results) out += *st->before_results ? ", before results" : ", after results";
   if (!st->revisions.empty()) out += fmt::format(", revised {}×", st->revisions.size());
   return out;
+}
+
+// Whether the parts' rules were first written before any result or revised after results.
+std::string rules_cell(const RegistrationStatus* st, const ClaimResult& c) {
+  if (st == nullptr) return "";
+  int revised = 0;
+  for (size_t k = 0; k < c.parts.size(); ++k)
+    revised += part_history(st, part_id(c, k), c.parts[k]).revised_after_results;
+  return revised == 0 ? "rules written before any result"
+                      : fmt::format("{} of {} parts revised after results", revised, c.parts.size());
+}
+
+// A part's verdict under each registered version that had results, and today's.
+std::string versions_line(const RegistrationStatus* st, const std::string& id, const PartResult& p,
+                          ExperimentKind kind) {
+  const PartHistory h = part_history(st, id, p);
+  if (h.versions.empty()) return "";
+  return fmt::format("- Versions{}: {}; today: `{}` {}\n",
+                     h.revised_after_results ? " (revised after results)" : " (rule and words unchanged)",
+                     fmt::join(h.versions, "; "), p.rule, verdict_word(p.verdict, kind));
 }
 
 void revisions_section(std::ostringstream& md, const RegistrationStatus* st) {
@@ -257,8 +337,9 @@ std::string reproduction_markdown(const std::vector<ClaimResult>& items, const R
         "way, are in [claims/](claims/README.md).\n\n"
      << fmt::format("Generated by `{}` ({} tier) on {}, {}. Do not edit: run the command again.\n\n", ctx.command,
                     to_string(ctx.tier), ctx.machine, ctx.build)
-     << "**" << part_counts_line(items) << ".**\n\n**" << experiment_counts_line(items) << ".**\n\n";
-  md << "| part | published | source | ours | rule | verdict |\n|---|---|---|---|---|---|\n";
+     << "**" << part_counts_line(items) << ".**\n\n**" << experiment_counts_line(items) << ".**\n\n"
+     << "**" << revisions_line(items, ctx) << ".**\n\n";
+  md << "| part | published | source | ours | rule | verdict | could fail |\n|---|---|---|---|---|---|---|\n";
   for (const ClaimResult& c : items) {
     for (size_t k = 0; k < c.parts.size(); ++k) {
       const PartResult& p = c.parts[k];
@@ -266,12 +347,13 @@ std::string reproduction_markdown(const std::vector<ClaimResult>& items, const R
       if (!p.ours.empty())
         for (const MeasureResult& m : c.measures)
           if (m.name == p.ours) ours = measure_value(m);
-      md << fmt::format("| [{}](#{}) {} | {} | {} | {} | {} | **{}** |\n", part_id(c, k), anchor(c.id), cell(p.says),
-                        cell(p.published), cell(p.source), cell(ours), code_cell(p.rule),
-                        verdict_word(p.verdict, c.kind));
+      md << fmt::format("| [{}](#{}) {} | {} | {} | {} | {} | **{}** | {} |\n", part_id(c, k), anchor(c.id),
+                        cell(p.says), cell(p.published), cell(p.source), cell(ours), code_cell(p.rule),
+                        verdict_word(p.verdict, c.kind), can_fail_cell(p, c.kind));
     }
   }
   md << "\n";
+  identity_section(md, items);
   for (const ClaimResult& c : items) {
     const RegistrationStatus* st = status_of(ctx, c.id);
     md << fmt::format("## {}\n\n", c.id);
@@ -297,6 +379,14 @@ std::string reproduction_markdown(const std::vector<ClaimResult>& items, const R
                         cell(p.source), cell(ours), rule, cell(verdict_with_reason(p, c.kind)));
     }
     md << "\n";
+    for (size_t k = 0; k < c.parts.size(); ++k) {
+      const std::string line = counterfactual_line(c.parts[k], c.kind);
+      if (!line.empty()) md << "- " << part_id(c, k) << line.substr(1);
+      const std::string versions = versions_line(st, part_id(c, k), c.parts[k], c.kind);
+      if (!versions.empty()) md << "- " << part_id(c, k) << versions.substr(1);
+    }
+    if (st != nullptr) md << "Rules: " << rules_cell(st, c) << ".\n";
+    md << "\n";
     if (c.figure.kind != "none")
       md << fmt::format("![{}]({})\n\n", c.id, (ctx.figures_dir / (c.id + ".png")).generic_string());
     measures_table(md, c);
@@ -310,29 +400,97 @@ std::string reproduction_markdown(const std::vector<ClaimResult>& items, const R
 
 std::string part_id(const ClaimResult& c, size_t k) { return fmt::format("{}.{}", c.id, k + 1); }
 
+PartHistory part_history(const RegistrationStatus* st, const std::string& id, const PartResult& p) {
+  PartHistory h;
+  if (st == nullptr) return h;
+  for (size_t i = 0; i < st->entries.size(); ++i) {
+    const Registration& r = *st->entries[i];
+    if (!r.earlier) continue;
+    const EarlierResult& e = *r.earlier;
+    const auto verdict = e.parts.find(id);
+    const auto rule = e.rules.find(id);
+    const auto says = e.says.find(id);
+    if (rule != e.rules.end() && rule->second != p.rule) h.revised_after_results = true;
+    if (says != e.says.end() && says->second != p.says) h.revised_after_results = true;
+    if (verdict == e.parts.end()) continue;
+    // Entry i revised the version registered by entry i - 1 (entry 0: a version before any
+    // registration).
+    const std::string label = i == 0 ? std::string("before registration")
+                                     : "registered " + st->entries[i - 1]->registered.substr(0, 10);
+    h.versions.push_back(fmt::format("{}: {}{}", label,
+                                     rule == e.rules.end() ? std::string() : "`" + rule->second + "` ",
+                                     verdict->second));
+    if (i > 0 && !h.first_registered_known) {
+      h.first_registered_known = true;
+      h.first_registered = verdict->second;
+    }
+  }
+  return h;
+}
+
+std::string revisions_line(const std::vector<ClaimResult>& results, const ReportContext& ctx) {
+  if (results.empty()) return "no revisions";
+  const ExperimentKind kind = results.front().kind;
+  int changed = 0, counted = 0, revised = 0, revised_counted = 0;
+  int first[kVerdictCount] = {}, now[kVerdictCount] = {};
+  for (const ClaimResult& c : results) {
+    const auto it = ctx.registration.find(c.id);
+    const RegistrationStatus* st = it == ctx.registration.end() ? nullptr : &it->second;
+    for (size_t k = 0; k < c.parts.size(); ++k) {
+      const PartResult& p = c.parts[k];
+      if (p.beyond) continue;
+      const PartHistory h = part_history(st, part_id(c, k), p);
+      const bool is_counted = p.verdict == Verdict::Supported || p.verdict == Verdict::Contradicted;
+      counted += is_counted;
+      revised += h.revised_after_results;
+      revised_counted += h.revised_after_results && is_counted;
+      Verdict then = p.verdict;
+      if (h.first_registered_known && !parse_verdict(h.first_registered, then)) then = Verdict::NotTestable;
+      ++first[static_cast<int>(then)];
+      ++now[static_cast<int>(p.verdict)];
+      if (is_counted && h.first_registered_known && then != p.verdict) ++changed;
+    }
+  }
+  auto pair = [&](const int counts[]) {
+    return fmt::format("{} {}, {} {}", counts[static_cast<int>(Verdict::Supported)],
+                       verdict_word(Verdict::Supported, kind), counts[static_cast<int>(Verdict::Contradicted)],
+                       verdict_word(Verdict::Contradicted, kind));
+  };
+  return fmt::format("Revisions: {} of the {} counted verdicts differ from the verdict under their first registered "
+                     "version; counted by the first registered versions' verdicts (today's where no registered "
+                     "version before today's had results): {}, against {} today; {} {} revised after results "
+                     "({} of them counted today)",
+                     changed, counted, pair(first), pair(now), revised, revised == 1 ? "part's rule or words were" : "parts' rules or words were",
+                     revised_counted);
+}
+
 std::string part_counts_line(const std::vector<ClaimResult>& results) {
   if (results.empty()) return "no parts";
   const ExperimentKind kind = results.front().kind;
   const PartCounts pc = count_parts(results);
   int article = 0, beyond = 0;
   for (int k = 0; k < kVerdictCount; ++k) article += pc.article[k], beyond += pc.beyond[k];
+  const int identities = pc.article[static_cast<int>(Verdict::Identity)];
+  const int not_shown = pc.article[static_cast<int>(Verdict::NotShown)];
+  const std::string uncounted = fmt::format("{} {} and {} not shown able to fail, shown but not counted", identities,
+                                            identities == 1 ? "identity" : "identities", not_shown);
   if (kind == ExperimentKind::Reproduction) {
-    return fmt::format("{} published results, counted by part: {}; {} {} shown but not counted", article,
+    return fmt::format("{} published results, counted by part: {}; {}", article,
                        counts_phrase(pc.article, kind,
                                      {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive,
                                       Verdict::SetupUnknown, Verdict::NotTestable}),
-                       pc.article[static_cast<int>(Verdict::Identity)],
-                       pc.article[static_cast<int>(Verdict::Identity)] == 1 ? "identity" : "identities");
+                       uncounted);
   }
   std::string out = fmt::format(
-      "{} {} in the article's regime: {}", article, article == 1 ? "part" : "parts",
+      "{} {} in the article's regime: {}; {}", article, article == 1 ? "part" : "parts",
       counts_phrase(pc.article, kind,
-                    {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive, Verdict::NotTestable}));
+                    {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive, Verdict::NotTestable}),
+      uncounted);
   if (beyond > 0)
     out += fmt::format("; {} beyond it: {}", beyond,
                        counts_phrase(pc.beyond, kind,
                                      {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive,
-                                      Verdict::NotTestable}));
+                                      Verdict::NotTestable, Verdict::Identity, Verdict::NotShown}));
   return out;
 }
 
@@ -344,6 +502,8 @@ std::string experiment_counts_line(const std::vector<ClaimResult>& results) {
   std::vector<Verdict> order = {Verdict::Supported, Verdict::Contradicted, Verdict::Mixed, Verdict::Inconclusive,
                                 Verdict::NotTestable};
   if (kind == ExperimentKind::Reproduction) order.push_back(Verdict::SetupUnknown);
+  order.push_back(Verdict::NotShown);
+  order.push_back(Verdict::Identity);
   return fmt::format("{} {}, each from its decided parts in {} regime: {}", results.size(),
                      kind == ExperimentKind::Claim ? (results.size() == 1 ? "claim with an experiment" : "claims with an experiment")
                                                    : (results.size() == 1 ? "experiment" : "experiments"),
@@ -384,7 +544,8 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
         "(`docs/solvers.md`).\n\n"
      << fmt::format("Generated by `{}` ({} tier) on {}, {}. Do not edit: run the command again.\n\n", ctx.command,
                     to_string(ctx.tier), ctx.machine, ctx.build)
-     << "**" << part_counts_line(claims) << ".**\n\n**" << experiment_counts_line(claims) << ".**\n\n";
+     << "**" << part_counts_line(claims) << ".**\n\n**" << experiment_counts_line(claims) << ".**\n\n"
+     << "**" << revisions_line(claims, ctx) << ".**\n\n";
   if (ctx.index != nullptr) {
     int untestable = 0;
     for (const IndexedClaim& c : ctx.index->claims) untestable += !c.untestable.empty();
@@ -403,14 +564,18 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
       else ++counts[static_cast<int>(p.verdict)];
     }
     std::vector<std::string> parts;
-    for (Verdict v : {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive, Verdict::NotTestable})
+    for (Verdict v : {Verdict::Supported, Verdict::Contradicted, Verdict::Inconclusive, Verdict::NotTestable,
+                      Verdict::Identity, Verdict::NotShown})
       if (counts[static_cast<int>(v)] > 0) parts.push_back(fmt::format("{} {}", counts[static_cast<int>(v)], to_string(v)));
     if (beyond > 0) parts.push_back(fmt::format("{} beyond", beyond));
     std::string claim = c.claim;
     if (ctx.index != nullptr)
       if (const IndexedClaim* ic = ctx.index->find(c.id)) claim = ic->claim;
+    const RegistrationStatus* rst = status_of(ctx, c.id);
+    std::string registered = registration_cell(rst);
+    if (const std::string rules = rules_cell(rst, c); !rules.empty()) registered += "; " + rules;
     md << fmt::format("| [{}](#{}) | {} | {} | **{}** | {} |\n", c.id, anchor(c.id), cell(claim),
-                      fmt::join(parts, ", "), to_string(c.verdict), registration_cell(status_of(ctx, c.id)));
+                      fmt::join(parts, ", "), to_string(c.verdict), registered);
   }
   md << "\n";
 
@@ -441,6 +606,8 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
         if (!m.empty()) md << "- Measured: " << m << "\n";
       }
       if (!p.judged_with.empty()) md << "- Runs: " << fmt::format("{}", fmt::join(p.judged_with, "; ")) << "\n";
+      md << counterfactual_line(p, c.kind);
+      md << versions_line(st, part_id(c, k), p, c.kind);
       md << "\n";
     }
     measures_table(md, c);
@@ -450,6 +617,7 @@ std::string report_markdown(const std::vector<ClaimResult>& claims, const Report
       md << fmt::format("![{}]({})\n\n", c.id, (ctx.figures_dir / (c.id + ".png")).generic_string());
   }
 
+  identity_section(md, claims);
   if (ctx.index != nullptr) {
     md << "## Claims not testable here\n\n";
     for (const IndexedClaim& ic : ctx.index->claims) {
@@ -467,7 +635,8 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
   js << "{\n  \"tier\": " << json_string(to_string(ctx.tier)) << ",\n  \"machine\": " << json_string(ctx.machine)
      << ",\n  \"build\": " << json_string(ctx.build) << ",\n  \"command\": " << json_string(ctx.command)
      << ",\n  \"parts\": " << json_string(part_counts_line(claims))
-     << ",\n  \"experiments\": " << json_string(experiment_counts_line(claims)) << ",\n  \"claims\": [\n";
+     << ",\n  \"experiments\": " << json_string(experiment_counts_line(claims))
+     << ",\n  \"revisions\": " << json_string(revisions_line(claims, ctx)) << ",\n  \"claims\": [\n";
   for (size_t i = 0; i < claims.size(); ++i) {
     const ClaimResult& c = claims[i];
     const RegistrationStatus* st = status_of(ctx, c.id);
@@ -518,7 +687,30 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
          << ", \"published\": " << json_string(p.published) << ", \"source\": " << json_string(p.source)
          << ", \"ours\": " << json_string(p.ours) << ", \"ours_value\": "
          << (p.ours.empty() ? std::string("null") : json_number(p.ours_value))
-         << ", \"timing\": " << (p.timing ? "true" : "false") << "}";
+         << ", \"timing\": " << (p.timing ? "true" : "false")
+         << ", \"measured\": " << json_string(verdict_word(p.measured, c.kind))
+         << ", \"outcome\": " << json_number(p.outcome)
+         << ", \"identity\": " << json_string(p.identity)
+         << ", \"can_fail\": " << json_string(to_string(p.can_fail))
+         << ", \"compared_spread\": " << json_string(p.compared_spread);
+      {
+        const PartHistory h = part_history(st, part_id(c, k), p);
+        js << ", \"revised_after_results\": " << (h.revised_after_results ? "true" : "false")
+           << ", \"first_registered\": " << json_string(h.first_registered_known ? h.first_registered : "")
+           << ", \"versions\": [";
+        for (size_t v = 0; v < h.versions.size(); ++v) js << (v ? ", " : "") << json_string(h.versions[v]);
+        js << "]";
+      }
+      js << ", \"counterfactual\": ";
+      if (p.has_counterfactual)
+        js << "{\"why\": " << json_string(p.counterfactual_why) << ", \"variant\": "
+           << json_string(p.counterfactual_variant) << ", \"verdict\": "
+           << json_string(verdict_word(p.counterfactual_verdict, c.kind)) << ", \"outcome\": "
+           << json_number(p.counterfactual_outcome) << ", \"reason\": " << json_string(p.counterfactual_reason)
+           << ", \"measured\": " << json_string(p.counterfactual_measured) << "}";
+      else
+        js << "null";
+      js << "}";
     }
     js << "]}" << (i + 1 < claims.size() ? ",\n" : "\n");
   }

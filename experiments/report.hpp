@@ -44,6 +44,20 @@ std::string results_json(const std::vector<ClaimResult>& claims, const ReportCon
 // "73 parts in the article's regime: 32 supported, 31 contradicted, 6 inconclusive, 4 not
 // testable"; "22 claims: ...".
 std::string part_counts_line(const std::vector<ClaimResult>& results);
+
+// A part's registered versions (experiments/registry.hpp): the verdict under each version that
+// had results and was revised, and whether its rule or words changed after results.
+struct PartHistory {
+  bool revised_after_results = false;  // an earlier version's rule or words differ from today's
+  bool first_registered_known = false;  // a registered version before today's had results
+  std::string first_registered;        // that first registered version's verdict
+  std::vector<std::string> versions;   // "registered DATE: rule `...`: verdict", oldest first
+};
+PartHistory part_history(const RegistrationStatus* status, const std::string& part_id, const PartResult& part);
+
+// "Revisions: ..." : how many counted verdicts changed after their first registration, the
+// first-registered verdicts counted beside today's, and how many parts were revised after results.
+std::string revisions_line(const std::vector<ClaimResult>& results, const ReportContext& context);
 std::string experiment_counts_line(const std::vector<ClaimResult>& results);
 
 // Verdict records: one line per part, "S5.4.2" = "contradicted", and one per claim, "S5.4" =

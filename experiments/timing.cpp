@@ -6,7 +6,10 @@
 #include <fstream>
 #include <limits>
 #include <ostream>
+#include <set>
 #include <sstream>
+
+#include <unistd.h>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -15,6 +18,7 @@
 #include "experiments/provenance.hpp"
 #include "experiments/sha256.hpp"
 #include "harness/runner.hpp"
+#include "runfile/utc_now.hpp"
 #include "solver_api/options.hpp"
 
 namespace pbdbench::experiments {
@@ -49,6 +53,22 @@ MedianInterval median_interval(std::vector<double> samples) {
   out.hi = samples[static_cast<size_t>(n - k)];
   out.coverage = 1.0 - miss;
   return out;
+}
+
+MedianInterval timing_interval(const TimingResult& t, const std::vector<double>& per_repeat) {
+  MedianInterval all = median_interval(per_repeat);
+  if (t.session.size() != per_repeat.size() || t.sessions.size() < 2) return all;
+  for (size_t k = 0; k < t.sessions.size(); ++k) {
+    std::vector<double> mine;
+    for (size_t r = 0; r < per_repeat.size(); ++r)
+      if (t.session[r] == static_cast<int>(k)) mine.push_back(per_repeat[r]);
+    if (mine.empty()) continue;
+    const MedianInterval one = median_interval(mine);
+    all.lo = std::min(all.lo, one.lo);
+    all.hi = std::max(all.hi, one.hi);
+    all.coverage = std::min(all.coverage, one.coverage);
+  }
+  return all;
 }
 
 fs::path timing_record_path(const fs::path& runs_dir, const std::string& experiment, const std::string& group) {
@@ -107,6 +127,12 @@ std::string record_toml(const std::string& experiment, const TimingSpec& timing,
   rest << "status = [";
   for (size_t k = 0; k < r.status.size(); ++k) rest << (k ? ", " : "") << toml_quote(r.status[k]);
   rest << "]\n";
+  rest << "sessions = [\n";
+  for (size_t k = 0; k < r.sessions.size(); ++k) rest << "  " << toml_quote(r.sessions[k]) << ",\n";
+  rest << "]  # one per process that timed the group\n";
+  rest << "session = [";
+  for (size_t k = 0; k < r.session.size(); ++k) rest << (k ? ", " : "") << r.session[k];
+  rest << "]  # per repeat\n";
   rest << "seconds_per_step = [\n";
   for (const std::vector<double>& row : r.seconds_per_step) {
     rest << "  [";
@@ -146,6 +172,22 @@ bool read_record(const fs::path& path, const std::vector<std::string>& hashes, T
   }
   out.status.clear();
   for (auto&& s : *status) out.status.push_back(s.value_or(std::string("?")));
+  const toml::array* sessions = t["sessions"].as_array();
+  const toml::array* session = t["session"].as_array();
+  if (sessions == nullptr || session == nullptr || session->size() != out.seconds_per_step.size()) return false;
+  out.sessions.clear();
+  out.session.clear();
+  std::set<std::string> pids;
+  for (auto&& x : *sessions) {
+    out.sessions.push_back(x.value_or(std::string("?")));
+    pids.insert(out.sessions.back().substr(0, out.sessions.back().find(',')));
+  }
+  for (auto&& x : *session) {
+    const int k = static_cast<int>(x.value_or(int64_t{-1}));
+    if (k < 0 || k >= static_cast<int>(out.sessions.size())) return false;
+    out.session.push_back(k);
+  }
+  out.processes = static_cast<int>(pids.size());
   out.machine = t["machine"].value_or(std::string());
   out.build = t["build"].value_or(std::string());
   return true;
@@ -157,28 +199,30 @@ bool timing_is_current(const Experiment& ex, const TimingSpec& timing, Tier tier
   TimingResult scratch;
   return read_record(timing_record_path(runs_dir, ex.id, timing.name), config_hashes(ex, timing, tier), tier,
                      scratch) &&
-         static_cast<int>(scratch.seconds_per_step.size()) == timing.repeats;
+         static_cast<int>(scratch.sessions.size()) >= kTimingSessions &&
+         static_cast<int>(scratch.seconds_per_step.size()) == timing.repeats * static_cast<int>(scratch.sessions.size());
 }
 
-TimingResult time_group(const Experiment& ex, const TimingSpec& timing, Tier tier, const fs::path& runs_dir,
-                        bool force, std::ostream* log) {
+void time_session(const Experiment& ex, const TimingSpec& timing, Tier tier, const fs::path& runs_dir,
+                  std::ostream* log) {
   TimingResult r;
   r.group = timing.name;
   r.runs = timing.runs;
   r.record = timing_record_path(runs_dir, ex.id, timing.name);
   const std::vector<std::string> hashes = config_hashes(ex, timing, tier);
-  if (!force && read_record(r.record, hashes, tier, r) && static_cast<int>(r.seconds_per_step.size()) == timing.repeats) {
-    r.reused = true;
-    if (log != nullptr) *log << fmt::format("  {} timing {}: {} repeats (reused)\n", ex.id, timing.name, timing.repeats);
-    return r;
+  if (!read_record(r.record, hashes, tier, r)) {  // none, or of another build or configuration
+    r.seconds_per_step.clear();
+    r.session.clear();
+    r.sessions.clear();
+    r.status.assign(timing.runs.size(), "complete");
   }
   const auto t0 = std::chrono::steady_clock::now();
   const size_t n = timing.runs.size();
   std::vector<config::Config> configs;
   for (const std::string& name : timing.runs) configs.push_back(timing_config(ex, *ex.find_run(name), timing, tier));
   const fs::path dir = runs_dir / ex.id / "timing" / timing.name;
-  r.status.assign(n, "complete");
-  r.seconds_per_step.clear();
+  const int index = static_cast<int>(r.sessions.size());
+  r.sessions.push_back(fmt::format("pid {}, started {}", static_cast<long>(::getpid()), utc_now()));
   // The steps are timed with their logging inline (harness/step_logger.hpp): no logger thread
   // reads memory beside the step being timed, and every timing is made the same way.
   RunControl control;
@@ -191,11 +235,14 @@ TimingResult time_group(const Experiment& ex, const TimingSpec& timing, Tier tie
       if (outcome.status != RunStatus::Complete && r.status[k] == "complete") r.status[k] = to_string(outcome.status);
       if (outcome.steps_completed > 0) row[k] = outcome.solver_time / static_cast<double>(outcome.steps_completed);
     }
-    if (repeat > 0) r.seconds_per_step.push_back(std::move(row));
+    if (repeat > 0) {
+      r.seconds_per_step.push_back(std::move(row));
+      r.session.push_back(index);
+    }
   }
   r.machine = machine_description();
   r.build = build_description();
-  r.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   fs::create_directories(r.record.parent_path());
   {
     std::ofstream out(r.record);
@@ -203,8 +250,49 @@ TimingResult time_group(const Experiment& ex, const TimingSpec& timing, Tier tie
     if (!out) throw std::runtime_error("cannot write " + r.record.string());
   }
   if (log != nullptr)
-    *log << fmt::format("  {} timing {}: {} runs x {} repeats, interleaved, {:.2f} s\n", ex.id, timing.name, n,
-                        timing.repeats, r.wall_time);
+    *log << fmt::format("  {} timing {} (session {} of {}): {} runs x {} repeats, interleaved, {:.2f} s\n", ex.id,
+                        timing.name, index + 1, kTimingSessions, n, timing.repeats, wall);
+}
+
+TimingResult time_group(const Experiment& ex, const TimingSpec& timing, Tier tier, const fs::path& runs_dir,
+                        bool force, std::ostream* log, const SessionLauncher& launch) {
+  TimingResult r;
+  r.group = timing.name;
+  r.runs = timing.runs;
+  r.record = timing_record_path(runs_dir, ex.id, timing.name);
+  const std::vector<std::string> hashes = config_hashes(ex, timing, tier);
+  std::error_code ec;
+  if (force) fs::remove(r.record, ec);
+  const auto t0 = std::chrono::steady_clock::now();
+  int made = 0;
+  for (;;) {
+    TimingResult now;
+    const bool have = read_record(r.record, hashes, tier, now);
+    const int sessions = have ? static_cast<int>(now.sessions.size()) : 0;
+    if (have && static_cast<int>(now.seconds_per_step.size()) != timing.repeats * sessions) {
+      fs::remove(r.record, ec);  // a record of another repeat count: timed again
+      continue;
+    }
+    if (sessions >= kTimingSessions || made >= kTimingSessions) break;
+    if (launch) {
+      if (!launch(runs_dir)) throw std::runtime_error(fmt::format("{}: timing group {}: the process timing session {} failed",
+                                                                  ex.id, timing.name, sessions + 1));
+    } else {
+      time_session(ex, timing, tier, runs_dir, log);
+    }
+    ++made;
+  }
+  if (!read_record(r.record, hashes, tier, r))
+    throw std::runtime_error(fmt::format("{}: not a record of this build's sessions of these configurations ({}) "
+                                         "after timing them",
+                                         r.record.string(), fmt::join(hashes, ", ")));
+  r.group = timing.name;
+  r.runs = timing.runs;
+  r.reused = made == 0;
+  r.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (log != nullptr && r.reused)
+    *log << fmt::format("  {} timing {}: {} sessions x {} repeats (reused)\n", ex.id, timing.name, r.sessions.size(),
+                        timing.repeats);
   return r;
 }
 

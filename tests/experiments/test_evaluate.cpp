@@ -57,12 +57,18 @@ translation = "falls"
 judges = "method"
 truth = "the closed form g t^2 / 2"
 rule = "abs(fall - 9.81 * 0.25 / 2) < 0.05"
+[part.counterfactual]
+why = "in 0.7 s it falls 2.4 m, not 1.23 m"
+runs = { xpbd = { "time.duration" = 0.7 } }
 [[part]]
 says = "it falls 10 m"
 quote = "落下十米"
 translation = "falls ten metres"
 judges = "method"
 rule = "fall > 10"
+[part.counterfactual]
+why = "in 1.5 s it falls 11 m"
+runs = { xpbd = { "time.duration" = 1.5 } }
 [[part]]
 says = "unmeasurable"
 quote = "无"
@@ -82,6 +88,9 @@ translation = "falls"
 judges = "method"
 regime = "beyond"
 rule = "fall < 2"
+[part.counterfactual]
+why = "in 0.7 s it falls 2.4 m"
+runs = { xpbd = { time = { duration = 0.7 } } }
 [[part]]
 says = "decided only when it fell at all"
 quote = "落下"
@@ -141,7 +150,26 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
   EXPECT_EQ(counts.beyond[static_cast<int>(Verdict::Supported)], 1);
   EXPECT_EQ(part_counts_line({r}),
             "5 parts in the article's regime: 1 supported, 1 contradicted, 2 inconclusive, 1 not testable; "
-            "1 beyond it: 1 supported, 0 contradicted, 0 inconclusive, 0 not testable");
+            "0 identities and 0 not shown able to fail, shown but not counted; "
+            "1 beyond it: 1 supported, 0 contradicted, 0 inconclusive, 0 not testable, 0 identity, "
+            "0 not shown able to fail");
+  // Each decided part was shown able to fail: its counterfactual gave the other verdict. The
+  // variants of parts 1 and 5 are equal, so their runs were made once.
+  EXPECT_EQ(r.parts[0].can_fail, CanFail::Shown);
+  EXPECT_EQ(r.parts[0].counterfactual_verdict, Verdict::Contradicted);
+  EXPECT_EQ(r.parts[1].can_fail, CanFail::Shown);
+  EXPECT_EQ(r.parts[1].counterfactual_verdict, Verdict::Supported);
+  EXPECT_EQ(r.parts[4].can_fail, CanFail::Shown);
+  EXPECT_EQ(r.parts[0].counterfactual_variant, "xpbd: time.duration = 0.7");
+  EXPECT_EQ(r.parts[4].counterfactual_variant, "xpbd: time.duration = 0.7");
+  EXPECT_NE(r.parts[0].counterfactual_measured.find("fall = 2.4"), std::string::npos) << r.parts[0].counterfactual_measured;
+  EXPECT_EQ(r.parts[2].can_fail, CanFail::NotDecided);
+  EXPECT_EQ(varied_runs(ex).size(), 2u);
+  size_t counterfactual_files = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir / "runs" / "S9.1" / "counterfactual"))
+    counterfactual_files += e.path().extension() == ".h5";
+  EXPECT_EQ(counterfactual_files, 6u);  // two variants x three trials
+  EXPECT_EQ(plan_runs(ex, options).size(), 9u);  // the experiment's three, the variants' six
 
   // The second time, the run files are current and read instead of run; the numbers are equal.
   const ClaimResult again = evaluate_claim(ex, options);
@@ -195,6 +223,133 @@ TEST(Evaluate, RunsMeasuresAndDecides) {
   EXPECT_NE(js.find("\"runs/S9.1/xpbd-000.h5\""), std::string::npos) << js;
 }
 
+// Whether a verdict could have failed: a counterfactual that flips the rule, one that does not
+// (an identity), a decided part without one (not shown able to fail, not counted), a part that
+// is an identity by construction, and a comparison whose measures agree to round-off.
+const char* kCounterfactuals = R"toml(kind = "reproduction"
+paper = "nobody 2026"
+id = "cf"
+section = "1"
+claim = "things fall alike"
+experiment = "a particle falls for 0.3 s under pbd and under xpbd"
+scenario = "free_fall"
+[set]
+"time.duration" = 0.3
+"scene.velocity" = [0.0, 0.0, 0.0]
+[[setup]]
+what = "fall"
+value = "0.3 s"
+from = "assumed"
+why = "short"
+[[run]]
+name = "pbd"
+set = { "solver.name" = "pbd" }
+[[run]]
+name = "xpbd"
+set = { "solver.name" = "xpbd" }
+[[measure]]
+name = "fall_pbd"
+run = "pbd"
+value = "initial(potential_energy) - final(potential_energy)"
+doc = "energy released"
+[[measure]]
+name = "fall_xpbd"
+run = "xpbd"
+value = "initial(potential_energy) - final(potential_energy)"
+doc = "energy released"
+[[part]]
+says = "it releases less than 10 J"
+published = "10 J"
+source = "nowhere"
+rule = "fall_xpbd < 10"
+[part.counterfactual]
+why = "in 1 s it releases 48 J"
+runs = { xpbd = { "time.duration" = 1.0 } }
+[[part]]
+says = "it releases energy"
+published = "yes"
+source = "nowhere"
+rule = "fall_xpbd > 0"
+[part.counterfactual]
+why = "a longer fall still releases energy: this cannot flip"
+runs = { xpbd = { "time.duration" = 1.0 } }
+[[part]]
+says = "it falls at all (no counterfactual)"
+published = "yes"
+source = "nowhere"
+rule = "fall_xpbd > 0"
+[[part]]
+says = "energy is energy"
+published = "yes"
+source = "nowhere"
+rule = "fall_xpbd == fall_xpbd"
+identity = "a number equals itself"
+[[part]]
+says = "pbd and xpbd release the same energy"
+published = "yes"
+source = "nowhere"
+rule = "abs(fall_pbd - fall_xpbd) < 0.01"
+[part.counterfactual]
+why = "a pbd particle that falls for 1 s releases more"
+runs = { pbd = { "time.duration" = 1.0 } }
+)toml";
+
+TEST(Evaluate, ACountedVerdictNeedsACounterfactualThatFlipsIt) {
+  const fs::path dir = scratch("counterfactuals");
+  std::ofstream(dir / "cf.toml") << kCounterfactuals;
+  const Experiment ex = load_experiment(dir / "cf.toml");
+  EvaluateOptions options;
+  options.runs_dir = dir / "runs";
+  const ClaimResult r = evaluate_claim(ex, options);
+  ASSERT_EQ(r.parts.size(), 5u);
+  // Flipped: counted.
+  EXPECT_EQ(r.parts[0].verdict, Verdict::Supported) << r.parts[0].reason;
+  EXPECT_EQ(r.parts[0].can_fail, CanFail::Shown);
+  EXPECT_EQ(r.parts[0].counterfactual_verdict, Verdict::Contradicted);
+  // Not flipped: an identity, with the reason, not counted.
+  EXPECT_EQ(r.parts[1].measured, Verdict::Supported);
+  EXPECT_EQ(r.parts[1].verdict, Verdict::Identity);
+  EXPECT_EQ(r.parts[1].can_fail, CanFail::NotFlipped);
+  EXPECT_NE(r.parts[1].reason.find("leaves the rule holding"), std::string::npos) << r.parts[1].reason;
+  // No counterfactual: not shown able to fail, not counted.
+  EXPECT_EQ(r.parts[2].measured, Verdict::Supported);
+  EXPECT_EQ(r.parts[2].verdict, Verdict::NotShown);
+  EXPECT_EQ(r.parts[2].can_fail, CanFail::NoCounterfactual);
+  // Declared an identity.
+  EXPECT_EQ(r.parts[3].verdict, Verdict::Identity);
+  EXPECT_EQ(r.parts[3].can_fail, CanFail::ByConstruction);
+  // Flipped, but the two runs it compares agree to round-off (no constraint: the same fall).
+  EXPECT_EQ(r.parts[4].counterfactual_verdict, Verdict::Contradicted);
+  EXPECT_EQ(r.parts[4].verdict, Verdict::Identity) << r.parts[4].reason;
+  EXPECT_EQ(r.parts[4].can_fail, CanFail::NoVariation);
+  EXPECT_NE(r.parts[4].reason.find("do not vary beyond round-off"), std::string::npos) << r.parts[4].reason;
+  // One variant of xpbd shared by parts 1 and 2, one of pbd.
+  EXPECT_EQ(varied_runs(ex).size(), 2u);
+  const PartCounts counts = count_parts({r});
+  EXPECT_EQ(counts.decided(), 1);
+  EXPECT_EQ(counts.article[static_cast<int>(Verdict::Identity)], 3);
+  EXPECT_EQ(counts.article[static_cast<int>(Verdict::NotShown)], 1);
+  EXPECT_EQ(part_counts_line({r}),
+            "5 published results, counted by part: 1 reproduced, 0 not reproduced, 0 inconclusive, 0 setup unknown, "
+            "0 not testable; 3 identities and 1 not shown able to fail, shown but not counted");
+  // Both reports show them: the column, the section, the JSON.
+  ReportContext ctx;
+  ctx.command = "pbdbench paper";
+  const std::string md = report_markdown({r}, ctx);
+  EXPECT_NE(md.find("## Identities and parts not shown able to fail"), std::string::npos) << md;
+  EXPECT_NE(md.find("| could fail |"), std::string::npos) << md;
+  EXPECT_NE(md.find("yes (counterfactual: not reproduced)"), std::string::npos) << md;
+  EXPECT_NE(md.find("| [cf.3](#cf) | it falls at all (no counterfactual) | `fall_xpbd > 0` | not shown able to fail |"),
+            std::string::npos) << md;
+  const std::string js = results_json({r}, ctx, dir);
+  EXPECT_NE(js.find("\"can_fail\": \"yes\""), std::string::npos) << js;
+  EXPECT_NE(js.find("\"counterfactual\": {\"why\": \"in 1 s it releases 48 J\""), std::string::npos) << js;
+  // The claims' report has the section too.
+  ClaimResult as_claim = r;
+  as_claim.kind = ExperimentKind::Claim;
+  EXPECT_NE(report_markdown({as_claim}, ctx).find("## Identities and parts not shown able to fail"), std::string::npos);
+}
+
 // A run that explodes: the listing to the letter tears a cloth within a few steps (D3).
 const char* kExplodes = R"toml(id = "S9.2"
 section = "9.2"
@@ -240,8 +395,10 @@ TEST(Evaluate, AnExplosionThePartDoesNotAccountForMakesItInconclusive) {
   ASSERT_EQ(r.runs[0].exploded, 1) << "the listing to the letter was expected to explode here";
   EXPECT_EQ(r.parts[0].verdict, Verdict::Inconclusive);
   EXPECT_NE(r.parts[0].reason.find("run letter exploded"), std::string::npos) << r.parts[0].reason;
-  EXPECT_EQ(r.parts[1].verdict, Verdict::Supported);
-  EXPECT_EQ(r.verdict, Verdict::Supported);
+  // Decided on the runs, but with no counterfactual it is not counted.
+  EXPECT_EQ(r.parts[1].measured, Verdict::Supported);
+  EXPECT_EQ(r.parts[1].verdict, Verdict::NotShown);
+  EXPECT_EQ(r.verdict, Verdict::Inconclusive);
   EXPECT_EQ(r.parts[1].judged_with[0], "letter (pbd-seed, the listing to the letter)");
 }
 
@@ -290,25 +447,48 @@ TEST(Evaluate, TimingGroupsGiveMediansWithIntervalsAndRulesReadThem) {
   const ClaimResult r = evaluate_claim(ex, options);
   EXPECT_TRUE(r.runs[0].files.empty());  // timed only: no accuracy run made
   ASSERT_EQ(r.timings.size(), 1u);
-  ASSERT_EQ(r.timings[0].seconds_per_step.size(), 7u);
+  // Three sessions of 7 repeats (here in this process: no executable to start them apart).
+  ASSERT_EQ(r.timings[0].seconds_per_step.size(), 21u);
+  EXPECT_EQ(r.timings[0].sessions.size(), 3u);
+  EXPECT_EQ(r.timings[0].processes, 1);
   const MeasureResult& ratio = r.measures[0];
   EXPECT_TRUE(ratio.interval);
-  EXPECT_EQ(ratio.trials.size(), 7u);
+  EXPECT_EQ(ratio.trials.size(), 21u);
+  // The interval holds every session's interval of the median.
+  for (int k = 0; k < 3; ++k) {
+    std::vector<double> mine;
+    for (size_t i = 0; i < ratio.trials.size(); ++i)
+      if (r.timings[0].session[i] == k) mine.push_back(ratio.trials[i]);
+    ASSERT_EQ(mine.size(), 7u);
+    const MedianInterval one = median_interval(mine);
+    EXPECT_LE(ratio.lo, one.lo);
+    EXPECT_GE(ratio.hi, one.hi);
+  }
   EXPECT_LE(ratio.lo, ratio.value);
   EXPECT_LE(ratio.value, ratio.hi);
-  EXPECT_NEAR(ratio.coverage, 1.0 - 2.0 / 128.0, 1e-12);  // n = 7: [min, max]
+  // The least coverage: that of all 21 repeats' interval, or a session's (n = 7: [min, max]).
+  EXPECT_NEAR(ratio.coverage, std::min(median_interval(ratio.trials).coverage, 1.0 - 2.0 / 128.0), 1e-12);
   EXPECT_TRUE(r.measures[1].interval);
   EXPECT_DOUBLE_EQ(r.measures[1].lo, 2 * ratio.lo);
   EXPECT_DOUBLE_EQ(r.measures[1].hi, 2 * ratio.hi);
-  EXPECT_EQ(r.parts[0].verdict, Verdict::Supported) << r.parts[0].reason;
+  // Timed in one process: a timing verdict needs three.
+  EXPECT_EQ(r.parts[0].verdict, Verdict::Inconclusive) << r.parts[0].reason;
+  EXPECT_NE(r.parts[0].reason.find("timing group cost was timed in 1 separate process; a timing verdict needs 3"),
+            std::string::npos) << r.parts[0].reason;
   EXPECT_TRUE(r.parts[0].timing);
   // The record is read back the second time.
   const ClaimResult again = evaluate_claim(ex, options);
   EXPECT_TRUE(again.timings[0].reused);
   EXPECT_EQ(again.measures[0].value, ratio.value);
 
-  // A threshold inside the interval leaves the part inconclusive (decided from the same numbers).
+  // Timed in three processes, the part is decided; without a counterfactual it is not counted.
   ClaimResult measured = r;
+  measured.timings[0].processes = 3;
+  PartResult three = decide_part(ex, ex.parts[0], measured);
+  EXPECT_EQ(three.verdict, Verdict::Supported) << three.reason;
+  check_can_fail(ex, ex.parts[0], measured, nullptr, three);
+  EXPECT_EQ(three.verdict, Verdict::NotShown);
+  // A threshold inside the interval leaves the part inconclusive (decided from the same numbers).
   measured.measures[1].lo = 3.0;
   measured.measures[1].value = 4.0;
   measured.measures[1].hi = 5.0;

@@ -5,7 +5,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <sstream>
+
+#include <toml++/toml.h>
 
 #include "experiments/experiment.hpp"
 #include "experiments/registry.hpp"
@@ -165,6 +168,33 @@ TEST(Registry, MalformedRegistriesAreRefusedNamingTheLine) {
   std::ofstream(registry) << "[[registration]]\nexperiment = \"S1\"\nsha = \"abc\"\n";
   EXPECT_THROW(read_registry(registry), ExperimentError);
   EXPECT_TRUE(read_registry(dir / "missing.toml").empty());
+}
+
+// Over both registries: every part whose stored quick verdict is counted (supported,
+// contradicted, reproduced, not reproduced) names a counterfactual in its experiment file, and no
+// part that is an identity by construction is stored as counted.
+TEST(Registry, EveryCountedStoredVerdictHasACounterfactual) {
+  for (const fs::path& dir : {experiments_dir(), reproductions_dir()}) {
+    const fs::path record = dir.parent_path() / "verdicts_quick.toml";
+    ASSERT_TRUE(fs::exists(record)) << record;
+    const toml::table stored = toml::parse_file(record.string());
+    int counted = 0;
+    for (const Experiment& ex : load_experiments(dir, false)) {
+      for (size_t k = 0; k < ex.parts.size(); ++k) {
+        const std::string id = ex.id + "." + std::to_string(k + 1);
+        const std::string verdict = stored[id].value_or(std::string());
+        const bool is_counted = verdict == "supported" || verdict == "contradicted" || verdict == "reproduced" ||
+                                verdict == "not reproduced";
+        if (!is_counted) continue;
+        ++counted;
+        EXPECT_TRUE(ex.parts[k].counterfactual.has_value())
+            << record.string() << ": " << id << " is stored as " << verdict << " but " << ex.file.string()
+            << " gives it no [part.counterfactual]";
+        EXPECT_TRUE(ex.parts[k].identity.empty()) << id << " is an identity by construction, stored as " << verdict;
+      }
+    }
+    std::cout << record.string() << ": " << counted << " counted verdicts\n";
+  }
 }
 
 }  // namespace
