@@ -11,6 +11,7 @@ Each claim's [figure] (experiments/experiment.hpp) is one of:
     bars     the listed measures, one bar each, labelled with their values; a NaN measure is
              drawn as an empty bar labelled "NaN"; a timing measure (or one computed from one)
              carries its 95 % interval as an error bar
+A run of one or two rows (a static equilibrium) is drawn as a dashed level across the axis.
 The verdict is written in the title (a reproduction's: reproduced / not reproduced). The title
 says what ran: a placeholder {tets}, {triangles}, {edges} or {particles} is filled from the
 claim's run files (12,800 with a thousands separator), and a count of tets, triangles or particles
@@ -117,7 +118,12 @@ def plot_series(ax, claim, report_dir):
         n = min(len(t), len(y))
         if fig["log"]:
             y = np.abs(y)
-        line, = ax.plot(t[:n], y[:n], label=name)
+        if 0 < n <= 2 and run.status != "exploded" and np.isfinite(y[n - 1]):
+            # A run of a step or two (a static equilibrium, ref-static) is a level, not a stub at
+            # the start of the axis: drawn across it.
+            line = ax.axhline(y[n - 1], linestyle="--", color=f"C{drawn % 10}", label=f"{name} (final state)")
+        else:
+            line, = ax.plot(t[:n], y[:n], label=name, color=f"C{drawn % 10}")
         values.append(y[:n])
         if run.status == "exploded" and n > 0:
             ax.plot([t[n - 1]], [y[n - 1]], "x", color=line.get_color(), markersize=9)

@@ -252,6 +252,7 @@ class PlotClaimsTest(unittest.TestCase):
         os.makedirs(os.path.join(cls.dir, "runs"), exist_ok=True)
         fixture(os.path.join(cls.dir, "runs", "calm.h5"), "--solver", "xpbd")
         boom = fixture(os.path.join(cls.dir, "runs", "boom.h5"), "--solver", "pbd-seed")
+        fixture(os.path.join(cls.dir, "runs", "static.h5"), "--solver", "ref-static", "--rows", 2)
         with h5py.File(boom, "r+") as f:  # a volume that grows to 1e13, as S3.3's listing run did
             v = f["series/kinetic_energy"]
             v[...] = np.geomspace(1.0, 1e13, len(v))
@@ -261,7 +262,8 @@ class PlotClaimsTest(unittest.TestCase):
                     "title": ""}
             base.update(figure)
             return {"id": cid, "verdict": "mixed", "figure": base,
-                    "runs": [{"name": "calm", "files": ["runs/calm.h5"]}, {"name": "boom", "files": ["runs/boom.h5"]}],
+                    "runs": [{"name": "calm", "files": ["runs/calm.h5"]}, {"name": "boom", "files": ["runs/boom.h5"]},
+                             {"name": "static", "files": ["runs/static.h5"]}],
                     "measures": [{"name": "e_0", "value": 0}, {"name": "e_01", "value": 0},
                                  {"name": "e_03", "value": 0}, {"name": "small", "value": 1e-3},
                                  {"name": "large", "value": 12.0}]}
@@ -271,6 +273,7 @@ class PlotClaimsTest(unittest.TestCase):
             "decades": claim("B", "bars", measures=["small", "large", "e_0"], title="bars over decades"),
             "series": claim("S3.3", "series", series="kinetic_energy", runs=["calm", "boom"],
                             title="A tet block of {tets} tets, 12,800 StVK tets in the paper's words"),
+            "level": claim("L", "series", series="kinetic_energy", runs=["calm", "static"], title="with a static run"),
         }
         with open(os.path.join(cls.dir, "claims.json"), "w") as f:
             json.dump({"claims": list(cls.claims.values())}, f)
@@ -290,6 +293,15 @@ class PlotClaimsTest(unittest.TestCase):
         self.assertEqual(fig.axes[0].get_yscale(), "symlog", "1e-3 to 12 beside a 0: four decades")
         plt.close(fig)
 
+    def test_a_run_of_two_rows_is_a_level_across_the_axis(self):
+        fig, drawn = plot_claims.claim_figure(self.claims["level"], self.dir)
+        self.assertEqual(drawn, 2)
+        ax = fig.axes[0]
+        level = [line for line in ax.get_lines() if line.get_label() == "static (final state)"]
+        self.assertEqual(len(level), 1)
+        self.assertEqual(list(level[0].get_xdata()), [0, 1], "it spans the axis")
+        plt.close(fig)
+
     def test_the_title_says_what_ran(self):
         fig, _ = plot_claims.claim_figure(self.claims["series"], self.dir)
         title = fig.axes[0].get_title()
@@ -303,7 +315,7 @@ class PlotClaimsTest(unittest.TestCase):
                            capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIn("the title says 12,800 tets, the runs have 1", r.stderr)
-        for cid in ("S3.4", "B", "S3.3"):
+        for cid in ("S3.4", "B", "S3.3", "L"):
             self.assertTrue(os.path.getsize(os.path.join(self.dir, "figures", cid + ".png")) > 1000)
 
 
