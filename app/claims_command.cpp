@@ -137,28 +137,10 @@ EvaluateOptions evaluate_options(const ClaimsCommand& cmd, std::ostream* log) {
   options.runs_dir = runs_folder(cmd);
   options.force = cmd.force;
   options.log = log;
+  options.executable = cmd.executable;
   return options;
 }
 
-// The units of the shards (harness/shards.hpp): every planned run alone, and every [[timing]]
-// group whole (its runs are timed together in one task: their costs are compared), weighed by
-// the runs it makes (runs x (repeats + the warm-up)).
-struct Units {
-  std::vector<PlannedRun> plan;
-  std::vector<std::pair<const Experiment*, const TimingSpec*>> timings;
-  std::vector<int> run_shard, timing_shard;
-};
-Units units_of(const std::vector<Experiment>& chosen, const EvaluateOptions& options, int shards) {
-  Units u;
-  for (const Experiment& e : chosen) {
-    for (PlannedRun& p : plan_runs(e, options)) u.plan.push_back(std::move(p));
-    for (const TimingSpec& t : e.timings) u.timings.emplace_back(&e, &t);
-  }
-  std::vector<size_t> sizes(u.plan.size(), 1);
-  options.executable = cmd.executable;
-  for (const auto& [e, t] : u.timings) sizes.push_back(t->runs.size() * static_cast<size_t>(t->repeats + 1));
-  const std::vector<int> dealt = deal_units(sizes, shards);
-  u.run_shard.assign(dealt.begin(), dealt.begin() + static_cast<long>(u.plan.size()));
 // Each timing group's sessions at separate times: round r times the r-th session of every group
 // before any group's next one (experiments/timing.hpp), each in a process of its own.
 void time_in_rounds(const std::vector<Experiment>& chosen, const EvaluateOptions& options) {
@@ -214,6 +196,24 @@ void mark_timing_flips(std::vector<ClaimResult>& results, const fs::path& previo
   }
 }
 
+// The units of the shards (harness/shards.hpp): every planned run alone, and every [[timing]]
+// group whole (its runs are timed together in one task: their costs are compared), weighed by
+// the runs it makes (runs x (repeats + the warm-up)).
+struct Units {
+  std::vector<PlannedRun> plan;
+  std::vector<std::pair<const Experiment*, const TimingSpec*>> timings;
+  std::vector<int> run_shard, timing_shard;
+};
+Units units_of(const std::vector<Experiment>& chosen, const EvaluateOptions& options, int shards) {
+  Units u;
+  for (const Experiment& e : chosen) {
+    for (PlannedRun& p : plan_runs(e, options)) u.plan.push_back(std::move(p));
+    for (const TimingSpec& t : e.timings) u.timings.emplace_back(&e, &t);
+  }
+  std::vector<size_t> sizes(u.plan.size(), 1);
+  for (const auto& [e, t] : u.timings) sizes.push_back(t->runs.size() * static_cast<size_t>(t->repeats + 1));
+  const std::vector<int> dealt = deal_units(sizes, shards);
+  u.run_shard.assign(dealt.begin(), dealt.begin() + static_cast<long>(u.plan.size()));
   u.timing_shard.assign(dealt.begin() + static_cast<long>(u.plan.size()), dealt.end());
   return u;
 }
@@ -352,6 +352,7 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
         case Verdict::Inconclusive: ch = 'I'; break;
         case Verdict::SetupUnknown: ch = 'U'; break;
         case Verdict::Identity: ch = '='; break;
+        case Verdict::NotShown: ch = '?'; break;
         default: break;
       }
       parts += p.beyond ? static_cast<char>(std::tolower(ch)) : ch;
@@ -371,9 +372,9 @@ ClaimsOutcome run_claims(const ClaimsCommand& cmd, std::ostream& out, std::ostre
   if (index) ctx.index = &*index;
   const std::vector<Registration> registry = read_registry(registry_of(dir));
   for (const ClaimResult& r : results)
-        case Verdict::NotShown: ch = '?'; break;
     ctx.registration.emplace(r.id, registration_status(registry, registry_of(dir), r.id, r.file,
                                                        build_info().git_commit));
+  mark_timing_flips(results, outcome.out / (claims ? "claims.json" : "reproductions.json"), cmd.tier);
   write_text(outcome.out / "README.md", report_markdown(results, ctx));
   write_text(outcome.out / (claims ? "claims.json" : "reproductions.json"), results_json(results, ctx, outcome.out));
   if (!cmd.record.empty()) write_text(cmd.record, verdicts_toml(results, cmd.tier));
@@ -393,6 +394,5 @@ int run_register(const RegisterCommand& cmd, std::ostream& out) {
                                                 : whole_report_dir(cmd.kind) / (claims ? "claims.json" : "reproductions.json");
   return register_experiments(choose(all, cmd.ids, claims, dir), registry_of(dir), results, cmd.note, out);
 }
-  mark_timing_flips(results, outcome.out / (claims ? "claims.json" : "reproductions.json"), cmd.tier);
 
 }  // namespace pbdbench::experiments
