@@ -25,16 +25,6 @@ const char* to_string(ContactKind kind) {
 
 namespace {
 
-// Equal spheres touch at most 12 neighbours; this many overlapping pairs per particle means the
-// particles have collapsed onto each other (their number would grow with its square).
-// A million pairs (12 MB) are always allowed, so that small dense clouds are never refused.
-constexpr size_t kMaxPairsPerParticle = 64;
-constexpr size_t kPairSlack = 1000000;
-
-}  // namespace
-
-namespace {
-
 double plane_value(const PlaneCollider& p, const Vec3& x, double r) {
   const double nn = p.normal.norm();
   return (p.normal.dot(x) + p.offset) / nn - r;
@@ -100,9 +90,11 @@ void find_particle_pairs(const Model& model, const Points& x, double margin,
             if (std::binary_search(excluded.begin(), excluded.end(), std::make_pair(a, b)))
               continue;
             pairs.push_back({ContactKind::Particle, a, b});
-            if (pairs.size() > kMaxPairsPerParticle * static_cast<size_t>(n) + kPairSlack)
-              throw std::runtime_error(
-                  "particle contacts: more than " + std::to_string(kMaxPairsPerParticle) +
+            // Equal spheres touch at most 12 neighbours: kMaxPairsPerElement overlapping pairs
+            // per particle (core/surface_contact.hpp's limit) means they have collapsed.
+            if (pairs.size() > contact_pair_limit(static_cast<size_t>(n)))
+              throw ContactPairLimit(
+                  "particle contacts: more than " + std::to_string(kMaxPairsPerElement) +
                   " overlapping pairs per particle (" + std::to_string(n) +
                   " particles): they have collapsed onto each other; the run stops before its "
                   "memory grows with the square of their count");

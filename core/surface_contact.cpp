@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "core/bvh.hpp"
 
@@ -85,6 +86,18 @@ double surface_contact_thickness(const Model& model, int particle, int triangle)
   double r = 0.0;
   for (int v : t) r = std::max(r, model.radius[static_cast<size_t>(v)]);
   return model.radius[static_cast<size_t>(particle)] + r;
+}
+
+std::string contact_pair_limit_message(const std::string& what, std::size_t elements,
+                                       const std::string& unit, double margin) {
+  std::ostringstream text;
+  text << what << ": more than " << contact_pair_limit(elements) << " pairs (" << kMaxPairsPerElement
+       << " for each of " << elements << " " << unit << ", and " << kPairSlack
+       << ") within the contact margin (" << margin
+       << " m) plus the radii: the radius spans several mesh spacings and the surfaces lie inside "
+          "one another; the search stops before its memory grows with the square of their count "
+          "(core/surface_contact.hpp)";
+  return text.str();
 }
 
 int particle_body(const Model& model, int particle) {
@@ -262,6 +275,7 @@ std::vector<std::pair<int, int>> find_surface_contacts(const Model& model, const
   double rmax = 0.0;
   for (double r : model.radius) rmax = std::max(rmax, r);
   const int n = model.particle_count();
+  const std::size_t limit = contact_pair_limit(static_cast<std::size_t>(n));
   std::vector<int> found;
   for (int p = 0; p < n; ++p) {
     const Vec3 xp = x.row(p).transpose();
@@ -280,6 +294,9 @@ std::vector<std::pair<int, int>> find_surface_contacts(const Model& model, const
       const PointTriangle pt = point_triangle(xp, x.row(tri[0]).transpose(), x.row(tri[1]).transpose(),
                                               x.row(tri[2]).transpose());
       if (pt.distance - surface_contact_thickness(model, p, t) < margin) out.emplace_back(p, t);
+      if (out.size() > limit)
+        throw ContactPairLimit(contact_pair_limit_message("vertex-triangle contacts", static_cast<std::size_t>(n),
+                                                          "particles", margin));
     }
   }
   return out;
@@ -303,6 +320,7 @@ std::vector<std::array<int, 4>> find_edge_contacts(const Model& model, const Poi
   const PairRules rules(model);
   double rmax = 0.0;
   for (double r : model.radius) rmax = std::max(rmax, r);
+  const std::size_t limit = contact_pair_limit(edges.size());
   std::vector<int> found;
   for (int k = 0; k < static_cast<int>(edges.size()); ++k) {
     const auto& e = edges[static_cast<size_t>(k)];
@@ -326,6 +344,8 @@ std::vector<std::array<int, 4>> find_edge_contacts(const Model& model, const Poi
       const std::array<int, 4> ps{e[0], e[1], f[0], f[1]};
       const SegmentSegment ss = segment_segment(xa, xb, x.row(f[0]).transpose(), x.row(f[1]).transpose());
       if (ss.distance - edge_contact_thickness(model, ps) < margin) out.push_back(ps);
+      if (out.size() > limit)
+        throw ContactPairLimit(contact_pair_limit_message("edge-edge contacts", edges.size(), "edges", margin));
     }
   }
   return out;

@@ -28,9 +28,24 @@
 // side, the larger of a feature's); unsigned. Its gradient, with n = (P - Q) / |P - Q|:
 // (1 - s) n, s n, -(1 - t) n, -t n for a, b, c, d (P and Q minimise the distance over the
 // segments; where s or t is clamped at an end, it stays there to first order).
+//
+// The memory of a search is bounded (as particle contacts', core/contacts.cpp): a search that
+// finds more than contact_pair_limit(n) pairs (vertex-triangle: n the particles; edge-edge: n the
+// surface edges) throws ContactPairLimit instead of going on. At most kMaxPairsPerElement pairs
+// per element on average: a particle within its thickness of 64 triangles not its own fabric,
+// or an edge of 64 edges, means the thickness (radius plus contact margin) spans several mesh
+// spacings, the surfaces lie inside one another, and the pairs grow with the square of the
+// count (a 64 x 64 self-contact cloth with a radius of its size: 70 million edge pairs, 5 GB).
+// kPairSlack pairs (about 20 MB with their contacts) are always allowed, so that a small dense
+// scene is never refused. Below the limit the contacts are all of them, in the same order: the
+// limit changes no result; it only stops a search that would exhaust the memory, and the
+// message says which search, how many elements and the limit.
 #pragma once
 
 #include <array>
+#include <cstddef>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -38,6 +53,25 @@
 #include "core/model.hpp"
 
 namespace pbdbench {
+
+inline constexpr std::size_t kMaxPairsPerElement = 64;
+inline constexpr std::size_t kPairSlack = 1000000;
+
+// The most pairs a search over `elements` particles (or edges) may hold.
+constexpr std::size_t contact_pair_limit(std::size_t elements) {
+  return kMaxPairsPerElement * elements + kPairSlack;
+}
+
+// Thrown by a search that exceeds contact_pair_limit: "edge-edge contacts: more than ...".
+class ContactPairLimit : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The message of ContactPairLimit for `what` ("edge-edge contacts"), `elements` of `unit`
+// ("edges") at contact margin `margin` (m).
+std::string contact_pair_limit_message(const std::string& what, std::size_t elements,
+                                       const std::string& unit, double margin);
 
 struct PointTriangle {
   double distance = 0.0;        // |x_p - q|, m
@@ -125,7 +159,8 @@ class SurfaceContactCache {
 // of the four particles dynamic, positions finite. A BVH over the triangles at x (core/bvh.hpp)
 // is the broad phase: built anew at every call, or, with a cache, refit from the last call's
 // (the solvers keep one per solver: they call once per substep). Sorted by (particle, triangle).
-// Empty unless Model::surface_contact or Model::self_contact is set.
+// Empty unless Model::surface_contact or Model::self_contact is set. Throws ContactPairLimit
+// past contact_pair_limit(particles).
 std::vector<std::pair<int, int>> find_surface_contacts(const Model& model, const Points& x,
                                                        double margin,
                                                        SurfaceContactCache* cache = nullptr);
@@ -134,7 +169,8 @@ std::vector<std::pair<int, int>> find_surface_contacts(const Model& model, const
 // second in its order) whose gap at x is below margin, by the rules above: at least one of the
 // four particles dynamic, positions finite. The broad phase is a BVH over the edges (built anew,
 // or with a cache refit as above). Sorted. Empty unless Model::surface_contact or
-// Model::self_contact is set, and Model::edge_contact (on by default) is.
+// Model::self_contact is set, and Model::edge_contact (on by default) is. Throws
+// ContactPairLimit past contact_pair_limit(surface edges).
 std::vector<std::array<int, 4>> find_edge_contacts(const Model& model, const Points& x,
                                                    double margin,
                                                    SurfaceContactCache* cache = nullptr);

@@ -10,8 +10,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <new>
 #include <set>
+#include <string>
 #include <utility>
+
+#include <sys/resource.h>
 #include <vector>
 
 #include "core/contacts.hpp"
@@ -120,6 +124,55 @@ TEST(SurfaceContact, FlatClothHasNoSelfContactsAtRest) {
   EXPECT_TRUE(find_surface_contacts(m, m.rest_positions, 0.0).empty());
   EXPECT_TRUE(find_surface_contacts(m, m.rest_positions, 0.07).empty());
   EXPECT_FALSE(find_surface_contacts(m, m.rest_positions, 0.075).empty());
+}
+
+// A 64 x 64 self-contact cloth of side 1 m whose radius (1 m) spans the whole cloth: every edge
+// within the thickness of every other, 12,097 edges, 73 million edge pairs (1.2 GB as pairs,
+// 1.5 GB more as contacts): the searches stop at contact_pair_limit with their message.
+Model swollen_cloth(int n) {
+  Model m;
+  add_cloth(m, square_cloth(n, 1.0, 1.0));
+  m.self_contact = true;
+  return m;
+}
+
+TEST(SurfaceContact, SearchesStopAtThePairLimit) {
+  const Model m = swollen_cloth(32);
+  try {
+    find_edge_contacts(m, m.rest_positions, 0.0);
+    ADD_FAILURE() << "no ContactPairLimit from the edge-edge search";
+  } catch (const ContactPairLimit& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("edge-edge contacts: more than " + std::to_string(contact_pair_limit(surface_edges(m).size()))),
+              std::string::npos) << what;
+  }
+  EXPECT_THROW(find_surface_contacts(m, m.rest_positions, 0.0), ContactPairLimit);
+  EXPECT_THROW(find_contacts(m, m.rest_positions, 0.0, 0.0), ContactPairLimit);
+  // Below the limit, more than kMaxPairsPerElement pairs an element are found: a 16 x 16 cloth,
+  // 705 edges and 240,000 pairs, within the slack (kPairSlack) that small scenes always have.
+  const Model small = swollen_cloth(16);
+  EXPECT_GT(find_edge_contacts(small, small.rest_positions, 0.0).size(), kMaxPairsPerElement * surface_edges(small).size());
+}
+
+// The same search on the 64 x 64 cloth in a child whose address space is capped at 1 GB: the
+// limit (exit 0), not std::bad_alloc (exit 3; what it was without the limit, at 5 GB).
+[[noreturn]] void search_under_a_memory_cap() {
+  const rlimit cap{1L << 30, 1L << 30};
+  setrlimit(RLIMIT_AS, &cap);
+  const Model m = swollen_cloth(64);
+  try {
+    find_contacts(m, m.rest_positions, 0.0, 0.0);
+  } catch (const ContactPairLimit&) {
+    std::_Exit(0);
+  } catch (const std::bad_alloc&) {
+    std::_Exit(3);
+  }
+  std::_Exit(4);
+}
+
+TEST(SurfaceContact, PairLimitKeepsTheSearchUnderAMemoryCap) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  EXPECT_EXIT(search_under_a_memory_cap(), ::testing::ExitedWithCode(0), "");
 }
 
 TEST(SurfaceContact, FinderMatchesBruteForce) {
