@@ -48,13 +48,19 @@ std::string read_all(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-std::string refusal(const fs::path& path, const fs::path& scenario = {}) {
+// What `check` refused with, or "" when it let the output through.
+template <class Check>
+std::string refusal_by(Check check) {
   try {
-    check_output_path(path, scenario);
+    check();
   } catch (const OutputRefused& e) {
     return e.what();
   }
   return "";
+}
+
+std::string refusal(const fs::path& path, const fs::path& scenario = {}) {
+  return refusal_by([&] { check_output_path(path, scenario); });
 }
 
 TEST(OutputGuard, OnlyARunFileMayBeReplaced) {
@@ -136,12 +142,7 @@ TEST(OutputGuard, TheLockOfADeadHolderIsTakenOver) {
 // The guard every writer shares: the argument and the file named, the kind judged by content,
 // the command's inputs never replaced.
 std::string refusal_of(const fs::path& path, const OutputTarget& target) {
-  try {
-    check_output(path, target);
-  } catch (const OutputRefused& e) {
-    return e.what();
-  }
-  return "";
+  return refusal_by([&] { check_output(path, target); });
 }
 
 TEST(OutputGuard, OneGuardForEveryKindOfOutput) {
@@ -200,13 +201,8 @@ TEST(OutputGuard, PbdbenchFilesAreKnownByTheirContentAttribute) {
 
 TEST(OutputGuard, FoldersMustBeFolders) {
   const fs::path dir = temp_dir();
-  auto refusal = [](const fs::path& p, const std::vector<OutputInput>& inputs = {}) -> std::string {
-    try {
-      check_output_folder(p, "--out", inputs);
-    } catch (const OutputRefused& e) {
-      return e.what();
-    }
-    return "";
+  auto refusal = [](const fs::path& p, const std::vector<OutputInput>& inputs = {}) {
+    return refusal_by([&] { check_output_folder(p, "--out", inputs); });
   };
   EXPECT_EQ(refusal(dir / "new"), "");
   EXPECT_EQ(refusal(dir), "");
