@@ -12,11 +12,15 @@
 //   "solver.iterations" = 10              #   with every grid point
 //   "solver.substeps" = 1
 //
-// Keys may be quoted dotted paths ("solver.iterations") or nested tables ([set.solver]).
-// Each run writes <out>/<parameters>.h5 and a log beside it; <out>/index.json lists them all
-// (a shard: <out>/index.shard-I-of-N.json).
+// Keys may be quoted dotted paths ("solver.iterations") or nested tables ([set.solver]); a key
+// swept twice (twice in [grid] or in one [[case]], or in both) is refused. `name` is one plain
+// folder name (results/sweeps/<name>/). At most kMaxSweepRuns runs.
+// Each run writes <out>/<parameters>.h5 and a log beside it; <out>/index.json lists them all,
+// written when the sweep ends, and <out>/index.jsonl has a line per run as it ends (a shard:
+// <out>/index.shard-I-of-N.json and .jsonl). docs/sweeps.md has the formats.
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <functional>
 #include <iosfwd>
@@ -27,6 +31,13 @@
 #include "harness/shards.hpp"
 
 namespace pbdbench {
+
+// The most runs a sweep file may make (grid points times cases), counted before the grid is
+// expanded. Checking a run (its configuration built, its file compared) costs about a
+// millisecond and its entry about a kilobyte (docs/sweeps.md, "Limits", has the measurement), so
+// the limit keeps a sweep's check to about two minutes and its memory to about a hundred
+// megabytes; a grid of more runs is a mistake, or a study to split into several sweep files.
+inline constexpr std::size_t kMaxSweepRuns = 100000;
 
 struct SweepRun {
   std::vector<std::pair<std::string, std::string>> params;  // swept path -> TOML value text
@@ -76,8 +87,11 @@ struct SweepResult {
 };
 
 // Validates every run's configuration first (nothing starts if one is refused: the error names
-// the sweep file and the run), then runs those not already complete, `jobs` at a time, and
-// writes <out_dir>/index.json. Messages go to `log`.
+// the sweep file and the run; a cancellation stops the check, interrupted, nothing started),
+// then runs those not already complete, `jobs` at a time, appending a line per run to
+// <out_dir>/index.jsonl as each ends, and writes <out_dir>/index.json at the end. Refuses
+// (config::ConfigError, key "--out") an out_dir that holds the index of another sweep, or a run
+// log that no index of this sweep accounts for. Messages go to `log`.
 SweepResult run_sweep(const SweepSpec& spec, const SweepOptions& options, std::ostream& log);
 
 // Runs in child processes, `executable run SCENARIO --set ... --out FILE --quiet`, `jobs` at a

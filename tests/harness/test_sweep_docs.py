@@ -83,6 +83,13 @@ class SweepDocs(unittest.TestCase):
                           "solver.name-xpbd__solver.iterations-10__solver.substeps-1.h5",
                           "solver.name-xpbd__solver.iterations-1__solver.substeps-10.h5"])
         self.assertEqual({r["status"] for r in index["runs"]}, {"complete"})
+        # index.jsonl: the sweep, then a line per run as it ended (the second command ran none and
+        # left it).
+        with open(os.path.join(self.dir, "results", "sweeps", "chain_sweep", "index.jsonl")) as f:
+            lines = [json.loads(line) for line in f]
+        self.assertEqual(lines[0]["sweep"], "chain_sweep")
+        self.assertEqual(lines[0]["parameters"], index["parameters"])
+        self.assertEqual(sorted(lines[1:], key=lambda r: r["file"]), sorted(index["runs"], key=lambda r: r["file"]))
         for r in index["runs"]:
             self.assertTrue(os.path.exists(os.path.join(self.dir, "results", "sweeps", "chain_sweep",
                                                         r["file"].replace(".h5", ".log"))))
