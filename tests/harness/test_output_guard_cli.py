@@ -131,6 +131,19 @@ class OutputGuardCliTest(unittest.TestCase):
             g.write(f.read())
         self.refused(["compare", self.run_a, self.run_b, "--out", copy], "--out", copy, "is not a pbdbench compare file")
         self.assertTrue(os.path.getsize(out) > 0)
+        # --plot: only an earlier figure of matplotlib's is replaced (its PNG names it).
+        plot = self.notes("plot.png")
+        self.refused(["compare", self.run_a, self.run_b, "--plot", plot], "--plot", plot,
+                     "is not a pbdbench plot (a matplotlib figure)")
+        self.unchanged(plot)
+        self.refused(["compare", self.run_a, self.run_b, "--plot", self.run_b], "--plot", self.run_b,
+                     "is the reference run file itself")
+        self.refused(["compare", self.run_a, self.run_b, "--out", out, "--plot", out], "--plot", out,
+                     "is the compare file (--out) itself")
+        os.remove(plot)
+        for _ in range(2):
+            r = pbdbench("compare", self.run_a, self.run_b, "--plot", plot)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
 
     def test_converge(self):
         scenario = self.path("s.toml")
