@@ -1,31 +1,42 @@
 #!/usr/bin/env bash
 # pbdbench on a real Slurm: starts a single-node cluster on this machine (munged, slurmctld and
 # slurmd from Debian's munge and slurm-wlm, on free localhost ports, every file in a temporary
-# folder), runs through it the quick tiers of `paper` and `claims`, the quick regression and the
-# default study's chain sweep, each as a job array with its merge, compares each with the same
+# folder), runs commands through it as job arrays with their merge, compares each with the same
 # command run locally (verdicts and non-timing numbers identical: scripts/compare_results.py),
 # cancels a task of one array to check that the merge fails naming that shard and that
 # resubmitting redoes only it, prints the times, and stops the daemons it started.
 #
-#   scripts/slurm_check.sh [--install] [--shards N] [--keep]
+#   scripts/slurm_check.sh [--install] [--small] [--shards N] [--keep]
+#
+# What it runs through Slurm:
+#   (default, the thorough check: the test suite's full tier, slurm_check_full)
+#     the quick tiers of `paper` and `claims`, the quick regression and the default study's chain
+#     sweep, each as a job array compared with a local run; the cancelled task on `claims`.
+#   --small (the fast suite's slurm_check, seconds once the daemons are up)
+#     one small experiment (a reproduction of three runs, one of six seeded trials, and a timing
+#     group, on 0.1 s of the hanging chain, written here) and a small sweep (the default study's
+#     chain sweep, 22 runs, shortened to 0.25 s), each as a job array compared with a local run;
+#     the cancelled task on that experiment.
 #
 # --install: install munge and slurm-wlm with apt-get when missing (also PBDBENCH_SLURM_INSTALL=1);
 # without it, a machine without them skips the check (exit 77). Needs root (slurmd runs the jobs).
-# --shards N: tasks per array (default 4). --keep: keep the work folder.
+# --shards N: tasks per array (default 4; 2 with --small). --keep: keep the work folder.
 # PBDBENCH_BIN: the pbdbench to check (default: build/pbdbench, built first). Results and logs go
 # to results/slurm_check/ (PBDBENCH_SLURM_CHECK_DIR). Exit 0 when everything agrees, 1 when not.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-install=${PBDBENCH_SLURM_INSTALL:-0} shards=4 keep=0
+install=${PBDBENCH_SLURM_INSTALL:-0} shards= keep=0 small=0
 while [[ $# -gt 0 ]]; do
   case $1 in
     --install) install=1 ;;
+    --small) small=1 ;;
     --shards) shards=$2; shift ;;
     --keep) keep=1 ;;
-    *) echo "usage: $0 [--install] [--shards N] [--keep]" >&2; exit 2 ;;
+    *) echo "usage: $0 [--install] [--small] [--shards N] [--keep]" >&2; exit 2 ;;
   esac
   shift
 done
+if [[ -z $shards ]]; then if [[ $small == 1 ]]; then shards=2; else shards=4; fi; fi
 
 say() { echo "slurm_check: $*"; }
 if [[ $(id -u) -ne 0 ]]; then say "skipped: needs root to run slurmd"; exit 77; fi
@@ -203,41 +214,19 @@ run_pair() {
   t1=$(now)
   through_slurm "$name" "$t0" "$t1" "$bin" "$@" --out "$work/slurm/$name" --no-plots $(extra_slurm "$name") --slurm "$shards"
 }
-extra_local() { case $1 in paper|claims) echo "--runs $work/local/$1/runs" ;; esac; }
-extra_slurm() { case $1 in paper|claims) echo "--runs $work/slurm/$1/runs" ;; esac; }
+extra_local() { case $1 in paper|claims|experiment) echo "--runs $work/local/$1/runs" ;; esac; }
+extra_slurm() { case $1 in paper|claims|experiment) echo "--runs $work/slurm/$1/runs" ;; esac; }
 
-# --- paper, claims: quick tiers ----------------------------------------------------------------
-data=$("$bin" list | sed -n -e '1s/^Scenarios (\(.*\)\/scenarios):$/\1/p')
-run_pair paper paper --tier quick
-check "paper: local and Slurm agree" compare "$work/paper.compare.txt" reports \
-  "$work/local/paper/reproductions.json" "$work/slurm/paper/reproductions.json" "$data/reproductions/experiments" \
-  "$work/local/paper/runs"
-run_pair claims claims --tier quick
-check "claims: local and Slurm agree" compare "$work/claims.compare.txt" reports \
-  "$work/local/claims/claims.json" "$work/slurm/claims/claims.json" "$data/claims/experiments" \
-  "$work/local/claims/runs"
-
-# --- the regression's quick tier, and a sweep --------------------------------------------------
-t0=$(now)
-local_run regress "$work/regress.local.log" "$bin" regress --tier quick --no-plot --out "$work/local/regress"
-t1=$(now)
-through_slurm regress "$t0" "$t1" "$bin" regress --tier quick --no-plot --out "$work/slurm/regress" --slurm "$shards"
-check "regress: local and Slurm agree" compare "$work/regress.compare.txt" regress \
-  "$work/local/regress/regress.json" "$work/slurm/regress/regress.json" "$data/regress/cases.toml"
-
-sweep=$data/studies/default/chain_iterations_vs_substeps.toml
-t0=$(now)
-local_run sweep "$work/sweep.local.log" "$bin" sweep "$sweep" --out "$work/local/sweep" --jobs 1 --quiet
-t1=$(now)
-through_slurm sweep "$t0" "$t1" "$bin" sweep "$sweep" --out "$work/slurm/sweep" --quiet --slurm "$shards"
-check "sweep: local and Slurm agree" compare "$work/sweep.compare.txt" runs "$work/local/sweep" "$work/slurm/sweep"
-
-# --- A cancelled task: the merge fails naming it; resubmitting redoes only that shard -----------
-# The array is held (--slurm-opt=--hold, carried into both jobs and into submit.sh) so that task 1
-# can be cancelled before it starts.
+# A cancelled task: the merge fails naming it; resubmitting redoes only that shard.
+# cancel_check NAME REPORT EXPERIMENTS ARGS...: `pbdbench ARGS` (an experiment command) as a held
+# array (--slurm-opt=--hold, carried into both jobs and into submit.sh) so that task 1 can be
+# cancelled before it starts; its final report is compared with the local run NAME's REPORT (a
+# file name: claims.json or reproductions.json) of the experiments in EXPERIMENTS.
 cancel_check() {
-  local runs=$work/cancel/runs array merge array2 merge2 state log before after
-  submit cancel "$work/cancel.submit.log" "$bin" claims --tier quick --no-plots --runs "$runs" \
+  local name=$1 report=$2 experiments=$3
+  shift 3
+  local runs=$work/cancel/runs command=$1 array merge array2 merge2 state log before after
+  submit cancel "$work/cancel.submit.log" "$bin" "$@" --no-plots --runs "$runs" \
     --out "$work/cancel/report" --slurm "$shards" --slurm-opt=--hold >/dev/null || return 1
   array=$(submitted "submitted job array" "$work/cancel.submit.log")
   merge=$(submitted "the merge, job" "$work/cancel.submit.log")
@@ -245,7 +234,7 @@ cancel_check() {
   scontrol release "$array,$merge"
   state=$(wait_job "$merge")
   check "cancel: the merge fails when a task was cancelled (it ended $state)" test "$state" = FAILED
-  log=$runs/slurm/claims-merge-$merge.log
+  log=$runs/slurm/$command-merge-$merge.log
   check "cancel: the merge names shard 1" grep -q "shard 1/$shards:" "$log"
   check "cancel: the merge says how to resubmit" grep -q "bash $runs/slurm/submit.sh" "$log"
   check "cancel: no report after a failed merge" test ! -e "$work/cancel/report/README.md"
@@ -258,17 +247,119 @@ cancel_check() {
   state=$(wait_job "$merge2")
   after=$(find "$runs" -name '*.h5' | wc -l)
   check "cancel: the second merge writes the report (it ended $state)" test "$state" = COMPLETED -a -f "$work/cancel/report/README.md"
-  record "cancel    task 1 of $shards cancelled: merge $merge FAILED naming shard 1; resubmitted shard 1 only ($before -> $after run files), merge $merge2 $state"
+  record "cancel    $command: task 1 of $shards cancelled: merge $merge FAILED naming shard 1; resubmitted shard 1 only ($before -> $after run files), merge $merge2 $state"
   check "cancel: the resubmitted report agrees with the local run" compare "$work/cancel.compare.txt" reports \
-    "$work/local/claims/claims.json" "$work/cancel/report/claims.json" "$data/claims/experiments" "$work/local/claims/runs" \
+    "$work/local/$name/$report" "$work/cancel/report/$report" "$experiments" "$work/local/$name/runs" \
     >/dev/null
 }
-cancel_check || failures=$((failures + 1))
+
+data=$("$bin" list | sed -n -e '1s/^Scenarios (\(.*\)\/scenarios):$/\1/p')
+sweep=$data/studies/default/chain_iterations_vs_substeps.toml
+if [[ $small == 1 ]]; then
+  # --- One small experiment, and a small sweep --------------------------------------------------
+  # A reproduction written here, so that what the catalog's experiments become does not change
+  # what this check costs: three runs (one of six seeded trials) on 0.1 s of the hanging chain,
+  # a [[timing]] group of two of them (timed together: they must share a task), a measure and a
+  # part on each.
+  mkdir -p "$work/experiments"
+  cat >"$work/experiments/chain_small.toml" <<'TOML'
+kind = "reproduction"
+id = "chain_small"
+section = "1"
+paper = "slurm_check.sh"
+claim = "more sweeps cost more, and shuffled orders hold a chain"
+experiment = "a short chain through Slurm"
+scenario = "hanging_chain"
+[set]
+"time.duration" = 0.1
+[[setup]]
+what = "chain"
+value = "the catalog's"
+from = "assumed"
+why = "a check of the job array, not of the chain"
+[[run]]
+name = "few"
+set = { "solver.iterations" = 1 }
+[[run]]
+name = "shuffled"
+set = { "solver.order" = "shuffled" }
+trials = 6
+trial_key = "solver.shuffle_seed"
+[[run]]
+name = "many"
+set = { "solver.iterations" = 40 }
+[[timing]]
+name = "cost"
+runs = ["few", "many"]
+repeats = 7
+[[measure]]
+name = "cost"
+timing = "cost"
+value = "many / few"
+doc = "cost ratio"
+[[measure]]
+name = "err"
+run = "shuffled"
+value = "final(constraint_error_max)"
+doc = "final error"
+[[part]]
+says = "held"
+rule = "err < 0.1"
+published = "held"
+source = "nowhere"
+[[part]]
+says = "forty sweeps cost more than one"
+rule = "cost > 1"
+published = "more"
+source = "nowhere"
+TOML
+  run_pair experiment paper --experiments "$work/experiments"
+  check "experiment: local and Slurm agree" compare "$work/experiment.compare.txt" reports \
+    "$work/local/experiment/reproductions.json" "$work/slurm/experiment/reproductions.json" "$work/experiments" \
+    "$work/local/experiment/runs"
+
+  t0=$(now)
+  local_run sweep "$work/sweep.local.log" "$bin" sweep "$sweep" --set time.duration=0.25 --out "$work/local/sweep" --jobs 1 --quiet
+  t1=$(now)
+  through_slurm sweep "$t0" "$t1" "$bin" sweep "$sweep" --set time.duration=0.25 --out "$work/slurm/sweep" --quiet --slurm "$shards"
+  check "sweep: local and Slurm agree" compare "$work/sweep.compare.txt" runs "$work/local/sweep" "$work/slurm/sweep"
+
+  cancel_check experiment reproductions.json "$work/experiments" paper --experiments "$work/experiments" \
+    || failures=$((failures + 1))
+  checked="experiment sweep cancel"
+else
+  # --- paper, claims: quick tiers --------------------------------------------------------------
+  run_pair paper paper --tier quick
+  check "paper: local and Slurm agree" compare "$work/paper.compare.txt" reports \
+    "$work/local/paper/reproductions.json" "$work/slurm/paper/reproductions.json" "$data/reproductions/experiments" \
+    "$work/local/paper/runs"
+  run_pair claims claims --tier quick
+  check "claims: local and Slurm agree" compare "$work/claims.compare.txt" reports \
+    "$work/local/claims/claims.json" "$work/slurm/claims/claims.json" "$data/claims/experiments" \
+    "$work/local/claims/runs"
+
+  # --- the regression's quick tier, and a sweep ------------------------------------------------
+  t0=$(now)
+  local_run regress "$work/regress.local.log" "$bin" regress --tier quick --no-plot --out "$work/local/regress"
+  t1=$(now)
+  through_slurm regress "$t0" "$t1" "$bin" regress --tier quick --no-plot --out "$work/slurm/regress" --slurm "$shards"
+  check "regress: local and Slurm agree" compare "$work/regress.compare.txt" regress \
+    "$work/local/regress/regress.json" "$work/slurm/regress/regress.json" "$data/regress/cases.toml"
+
+  t0=$(now)
+  local_run sweep "$work/sweep.local.log" "$bin" sweep "$sweep" --out "$work/local/sweep" --jobs 1 --quiet
+  t1=$(now)
+  through_slurm sweep "$t0" "$t1" "$bin" sweep "$sweep" --out "$work/slurm/sweep" --quiet --slurm "$shards"
+  check "sweep: local and Slurm agree" compare "$work/sweep.compare.txt" runs "$work/local/sweep" "$work/slurm/sweep"
+
+  cancel_check claims claims.json "$data/claims/experiments" claims --tier quick || failures=$((failures + 1))
+  checked="paper claims regress sweep cancel"
+fi
 
 echo
-say "pbdbench $("$bin" --version) on $(sinfo -V), $cpus cores, $shards tasks per array:"
+say "pbdbench $("$bin" --version) on $(sinfo -V), $cpus cores, $shards tasks per array$([[ $small == 1 ]] && echo ", the small check"):"
 for line in "${summary[@]}"; do echo "  $line"; done
-for f in paper claims regress sweep cancel; do
+for f in $checked; do
   if [[ -f $work/$f.compare.txt ]]; then echo "  $f: $(head -1 "$work/$f.compare.txt")"; fi
 done
 if [[ $failures -gt 0 ]]; then say "$failures check(s) failed; logs in $work"; exit 1; fi
