@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <iostream>
 #include <limits>
+#include <new>
 
 #include <fmt/format.h>
 
@@ -33,6 +34,7 @@
 #include "config/config.hpp"
 #include "config/data_dir.hpp"
 #include "core/cancel.hpp"
+#include "core/stage.hpp"
 #include "experiments/timing.hpp"
 #include "harness/compare.hpp"
 #include "harness/converge.hpp"
@@ -147,6 +149,7 @@ int cmd_export(const std::vector<std::string>& files, const std::string& out) {
   for (const std::string& f : files) {
     const fs::path run_file(f);
     if (!is_run_file(run_file)) throw CompareInputError(f + ": not a pbdbench run file");
+    set_stage("exporting a run file to ParaView");
     print_export(write_xdmf(run_file, model_of_run(run_file), out.empty() ? default_xdmf_path(run_file) : fs::path(out),
                             out.empty() ? "the export" : "--out"));
   }
@@ -168,6 +171,7 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   control.progress = [&](long done, long total) { progress(done, total); };
   control.stop = &g_stop;
   control.force = force;
+  control.exported = xdmf;
   control.notice = [](const std::string& text) { std::cerr << "pbdbench: " << text << "\n"; };
   const RunOutcome r = run_config(cfg, out, control);
   std::string status = to_string(r.status);
@@ -181,7 +185,11 @@ int cmd_run(const std::string& scenario, const std::string& solver, const std::v
   if (!quiet) std::cout << summary_table({{cfg.scenario_name + " " + solver_name, out}});
   if (xdmf && r.steps_completed > 0) {
     try {
+      set_stage("exporting the run to ParaView");
       print_export(write_xdmf(out, config::build_scene(cfg).model, default_xdmf_path(out)));
+    } catch (const std::bad_alloc&) {
+      std::cerr << "pbdbench: no ParaView file: out of memory (std::bad_alloc) while exporting the run "
+                   "(the run file is complete; `pbdbench export` writes it later)\n";
     } catch (const std::exception& e) {
       std::cerr << "pbdbench: no ParaView file: " << e.what() << "\n";
     }
@@ -346,16 +354,9 @@ int run_python(const fs::path& script, const std::vector<std::string>& args) {
 // The compare file goes to --out; with --plot alone, to a temporary file removed after plotting.
 int cmd_compare(const std::string& run_file, const std::string& reference_file,
                 const std::string& out_arg, const std::string& plot, double until) {
-  const std::vector<OutputInput> inputs = {{run_file, "the run file compared"},
-                                           {reference_file, "the reference run file"}};
-  if (!out_arg.empty()) check_output(out_arg, OutputTarget{"--out", "compare file", is_compare_file, inputs});
-  // The plot: an earlier figure of matplotlib's (its PNG, PDF and SVG writers name it), nothing else.
-  if (!plot.empty()) {
-    std::vector<OutputInput> not_plot = inputs;
-    not_plot.push_back({out_arg, "the compare file (--out)"});
-    check_output(plot, OutputTarget{"--plot", "plot (a matplotlib figure)",
-                                    [](const fs::path& p) { return has_marker(p, "atplotlib", 1 << 20); }, not_plot});
-  }
+  if (!out_arg.empty())
+    check_output(out_arg, OutputTarget{"--out", "compare file", is_compare_file,
+                                       {{run_file, "the run file compared"}, {reference_file, "the reference run file"}}});
   const CompareRun run = read_compare_run(run_file);
   const CompareRun reference = read_compare_run(reference_file);
   CompareOptions options;
@@ -729,6 +730,13 @@ int main(int argc, char** argv) {
   } catch (const OutputRefused& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitBadInput;
+  } catch (const std::bad_alloc&) {
+    // Nothing here may allocate much: the message is written piece by piece.
+    const auto& used = app.get_subcommands();
+    std::cerr << "pbdbench " << (used.empty() ? std::string("") : used.front()->get_name())
+              << ": out of memory (std::bad_alloc) while " << current_stage()
+              << " (more than this machine or its limit gives the process)\n";
+    return kExitFailure;
   } catch (const std::exception& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
     return kExitFailure;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <exception>
 #include <memory>
+#include <new>
 #include <stdexcept>
 #include <string>
 
@@ -12,6 +13,7 @@
 #include <time.h>
 
 #include "core/cancel.hpp"
+#include "core/stage.hpp"
 #include "harness/plan.hpp"
 #include "harness/relax.hpp"
 #include "harness/step_logger.hpp"
@@ -81,6 +83,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   const auto t_start = Clock::now();
   const double cpu_start = thread_cpu_seconds();
   // Everything that can be refused is refused before the file is created.
+  set_stage("building the scene");
   Scene scene = config::build_scene(config);
   const SolverOptions solver_opts = config::solver_options(config);
   const config::RunOptions run = config::run_options(config);
@@ -108,6 +111,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
   }
   // A solver that cannot run this scene is bad input (exit 2), found after parsing.
   check_solver_names(config);
+  set_stage("building the solver");
   std::unique_ptr<Solver> solver;
   try {
     solver = control.make_solver ? control.make_solver(solver_opts, model) : make_solver(solver_opts, model);
@@ -138,16 +142,11 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
     relax_start = initial_rest_values(model, state.x);
   }
 
-  // The run as a whole, before anything is written: its initial state must be measurable, and
-  // it must fit the machine.
-  MetricsBaseline baseline = measure_baseline(model, state);
-  baseline.elastic_defined = elastic_energy_defined(model, solver_opts);
-  Sample sample = measure(model, state, baseline);
-  if (const std::string bad = non_finite_quantity(sample, baseline.elastic_defined); !bad.empty())
-    throw config::ConfigError(config::Source{config.file.string(), 0}, "scene",
-                              "the initial state cannot be measured: " + bad +
-                                  " (masses, positions, velocities or gravity too large)");
-  const RunPlan plan = plan_run(model, solver_opts, run);
+  // The run as a whole, before anything is written: it must fit the machine (planned before the
+  // initial state is measured: measuring finds its contacts, whose memory the plan bounds), and
+  // its initial state must be measurable.
+  set_stage("planning the run");
+  const RunPlan plan = plan_run(model, solver_opts, run, control.exported);
   if (const std::string problems = plan_problems(plan, out); !problems.empty()) {
     if (!control.force)
       throw config::ConfigError(config::Source{config.file.string(), 0}, "",
@@ -156,6 +155,14 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
     if (control.notice) control.notice("running anyway (--force): " + problems);
   }
   if (plan.seconds > 60.0 && control.notice) control.notice("planned: " + describe_plan(plan));
+  set_stage("measuring the initial state");
+  MetricsBaseline baseline = measure_baseline(model, state);
+  baseline.elastic_defined = elastic_energy_defined(model, solver_opts);
+  Sample sample = measure(model, state, baseline);
+  if (const std::string bad = non_finite_quantity(sample, baseline.elastic_defined); !bad.empty())
+    throw config::ConfigError(config::Source{config.file.string(), 0}, "scene",
+                              "the initial state cannot be measured: " + bad +
+                                  " (masses, positions, velocities or gravity too large)");
 
   RunOutcome outcome;
   outcome.setup_time = seconds_since(t_start);
@@ -183,6 +190,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
             : std::string("the explicit override, the *_stiffness keys (solver.pbd.material = "
                           "stiffness") + (solver_opts.pbd_stiffness_correction ? ", k' = 1 - (1 - k)^(1/n))" : ")");
   }
+  set_stage("writing the run file's start");
   RunFileWriter writer(out, header, model);
 
   // Warnings (metrics/health.hpp). Energy comes in through moving kinematic particles or
@@ -247,7 +255,10 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
       writer.finish(RunStatus::Incomplete, outcome.reason, outcome.steps_completed, outcome.wall_time);
       return outcome;
     }
-    end_run(RunStatus::Failed, e.what());
+    // std::bad_alloc says nothing of what ran out: the reason names it.
+    end_run(RunStatus::Failed, dynamic_cast<const std::bad_alloc*>(&e) != nullptr
+                                   ? std::string("out of memory (std::bad_alloc) while ") + current_stage()
+                                   : std::string(e.what()));
     writer.finish(RunStatus::Failed, outcome.reason, outcome.steps_completed, outcome.wall_time);
     return outcome;
   };
@@ -262,6 +273,7 @@ RunOutcome run_config(const config::Config& config, const std::filesystem::path&
 
   State shadow_state;
   bool interrupted = false;
+  set_stage("stepping the solver and logging the steps");
   try {
     for (long k = 1; k <= outcome.steps_planned && !logger.stopped(); ++k) {
       const bool shadowed = shadow && (k - 1) % shadow_every == 0;

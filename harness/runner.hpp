@@ -66,6 +66,9 @@ struct RunControl {
   const std::atomic<bool>* stop = nullptr;
   // Run even when the plan does not fit the machine (harness/plan.hpp).
   bool force = false;
+  // The caller exports the run to ParaView after it (`pbdbench run`): the plan counts the
+  // export's memory and file too.
+  bool exported = false;
   // Told the plan of a run expected to take more than a minute, before it starts; may be empty.
   std::function<void(const std::string&)> notice;
   // Where each step's metrics, row and frame are made (harness/step_logger.hpp): the file is the
