@@ -354,9 +354,16 @@ int run_python(const fs::path& script, const std::vector<std::string>& args) {
 // The compare file goes to --out; with --plot alone, to a temporary file removed after plotting.
 int cmd_compare(const std::string& run_file, const std::string& reference_file,
                 const std::string& out_arg, const std::string& plot, double until) {
-  if (!out_arg.empty())
-    check_output(out_arg, OutputTarget{"--out", "compare file", is_compare_file,
-                                       {{run_file, "the run file compared"}, {reference_file, "the reference run file"}}});
+  const std::vector<OutputInput> inputs = {{run_file, "the run file compared"},
+                                           {reference_file, "the reference run file"}};
+  if (!out_arg.empty()) check_output(out_arg, OutputTarget{"--out", "compare file", is_compare_file, inputs});
+  // The plot: an earlier figure of matplotlib's (its PNG, PDF and SVG writers name it), nothing else.
+  if (!plot.empty()) {
+    std::vector<OutputInput> not_plot = inputs;
+    not_plot.push_back({out_arg, "the compare file (--out)"});
+    check_output(plot, OutputTarget{"--plot", "plot (a matplotlib figure)",
+                                    [](const fs::path& p) { return has_marker(p, "atplotlib", 1 << 20); }, not_plot});
+  }
   const CompareRun run = read_compare_run(run_file);
   const CompareRun reference = read_compare_run(reference_file);
   CompareOptions options;
