@@ -431,7 +431,7 @@ class CliTest(unittest.TestCase):
         self.assertEqual(pbdbench("compare", chain, chain, "--until", "-1").returncode, 2)
         self.assertEqual(pbdbench("compare", chain).returncode, 2)  # usage
         r = pbdbench("compare", chain, os.path.join(self.dir, "missing.h5"))
-        self.assertEqual(r.returncode, 1)  # a file that cannot be read
+        self.assertEqual(r.returncode, 2)  # a file that is not a readable run file: bad input
         self.assertIn("missing.h5", r.stderr)
 
     def write_index(self, ids):
