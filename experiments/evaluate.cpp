@@ -443,9 +443,16 @@ std::string compared_without_variation(const Experiment& ex, const PartSpec& p, 
   PartSpec rule_only;
   rule_only.rule = p.rule;
   std::map<std::string, std::vector<const MeasureResult*>> groups;
+  // A run's status (exploded, failed, ...) alike in every run is a condition each run meets, not
+  // a quantity compared across them.
+  const std::set<std::string> status = {"exploded", "complete", "failed", "warnings", "exploded_step", "exploded_time"};
   for (const std::string& name : ex.measures_read(rule_only)) {
     const MeasureSpec& m = *ex.find_measure(name);
     if (m.run.empty()) continue;
+    const std::vector<std::string> reads = m.value.scalar_names();
+    if (m.value.series_names().empty() &&
+        std::all_of(reads.begin(), reads.end(), [&](const std::string& n) { return status.count(n) > 0; }))
+      continue;
     for (const MeasureResult& mr : result.measures)
       if (mr.name == name) groups[m.value.text() + "|" + m.over_trials].push_back(&mr);
   }
