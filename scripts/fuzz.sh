@@ -1,17 +1,29 @@
 #!/usr/bin/env bash
-# Fuzzes the scenario loader and the mesh readers (tests/fuzz/fuzz_loader.cpp) with libFuzzer,
-# AddressSanitizer and UndefinedBehaviorSanitizer, built by Debian's clang 14 in build-fuzz/.
+# Fuzzes the scenario loader, the mesh readers and the rule language of experiment files
+# (tests/fuzz/fuzz_loader.cpp), or whole experiment files (tests/fuzz/fuzz_experiment.cpp, with
+# --experiments), with libFuzzer, AddressSanitizer and UndefinedBehaviorSanitizer, built by
+# Debian's clang 14 in build-fuzz/.
 #
-#   scripts/fuzz.sh [SECONDS] [libFuzzer options...]   # default 60 s
-#   scripts/fuzz.sh --build-only                       # configure and build, do not run
+#   scripts/fuzz.sh [SECONDS] [libFuzzer options...]                 # default 60 s
+#   scripts/fuzz.sh --build-only                                     # configure and build, do not run
+#   scripts/fuzz.sh --experiments [SECONDS | --build-only] [...]     # experiment files
 #
-# Seeds: the catalog (scenarios/, its meshes) and the bad-input corpus (tests/bad_input/), each
-# file prefixed with the byte that selects its reader. What the fuzzer adds to the corpus stays
-# in build-fuzz/corpus/ (so a second run goes on from there); a crash leaves its input in
-# build-fuzz/ (crash-*, leak-*, timeout-*) and the script exits non-zero.
+# Seeds of fuzz_loader: the catalog (scenarios/, its meshes), the bad-input corpus
+# (tests/bad_input/) and the rules of tests/fuzz/make_seeds.py, each file prefixed with the byte
+# that selects its reader. Seeds of fuzz_experiment: the experiment files of claims/ and
+# reproductions/, and make_seeds.py's (the rules that crashed, endless trial counts). What the
+# fuzzer adds to the corpus stays in build-fuzz/corpus/ (corpus-experiments/ for the second), so
+# that a second run goes on from there; a crash leaves its input in build-fuzz/ (crash-*, leak-*,
+# timeout-*) and the script exits non-zero. fuzz_experiment links the whole experiment engine
+# (HDF5, the reference solvers): its first build takes much longer than fuzz_loader's.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build="${PBDBENCH_FUZZ_BUILD_DIR:-$root/build-fuzz}"
+target=fuzz_loader
+if [[ "${1:-}" == "--experiments" ]]; then
+  target=fuzz_experiment
+  shift
+fi
 "$root/scripts/install_deps.sh"
 
 if [[ ! -f "$build/CMakeCache.txt" ]]; then
@@ -26,7 +38,7 @@ if [[ ! -f "$build/CMakeCache.txt" ]]; then
 fi
 jobs=$(nproc 2>/dev/null || echo 2)
 set +e
-cmake --build "$build" -j "$jobs" --target fuzz_loader 2>&1 |
+cmake --build "$build" -j "$jobs" --target "$target" 2>&1 |
   grep -Ev '^\[ *[0-9]+%\] (Built target|Building|Linking)|^-- |^Consolidate compiler'
 status=${PIPESTATUS[0]}
 set -e
@@ -39,11 +51,25 @@ if [[ $# -gt 0 && "$1" =~ ^[0-9]+$ ]]; then
   shift
 fi
 
+# A refused input returns at once; 10 s for one input is a hang. Memory: 2 GB at most.
+limits=(-max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1)
+
+if [[ "$target" == fuzz_experiment ]]; then
+  seeds="$build/seeds-experiments"
+  rm -rf "$seeds"
+  mkdir -p "$seeds" "$build/corpus-experiments"
+  /usr/bin/python3 "$root/tests/fuzz/make_seeds.py" experiments "$seeds"
+  find "$root/claims/experiments" "$root/reproductions/experiments" -name '*.toml' -exec cp -t "$seeds" {} +
+  cd "$build"
+  exec ./tests/fuzz/fuzz_experiment "${limits[@]}" "$@" "$build/corpus-experiments" "$seeds"
+fi
+
 # Seeds: one file per catalog file, its first byte the reader (0 scenario, 1 OBJ, 2 TetGen
-# .node NUL .ele, 3 Gmsh).
+# .node NUL .ele, 3 Gmsh), and the rules of make_seeds.py (4).
 seeds="$build/seeds"
 rm -rf "$seeds"
 mkdir -p "$seeds" "$build/corpus"
+/usr/bin/python3 "$root/tests/fuzz/make_seeds.py" rules "$seeds"
 k=0
 seed() {  # seed MODE FILE...
   local mode=$1
@@ -62,6 +88,4 @@ while IFS= read -r -d '' f; do
 done < <(find "$root/scenarios" "$root/tests/bad_input" -name '*.node' -print0)
 
 cd "$build"
-# A refused input returns at once; 10 s for one input is a hang. Memory: 2 GB at most.
-exec ./tests/fuzz/fuzz_loader -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
-  -max_len=65536 -print_final_stats=1 "$@" "$build/corpus" "$seeds"
+exec ./tests/fuzz/fuzz_loader "${limits[@]}" "$@" "$build/corpus" "$seeds"

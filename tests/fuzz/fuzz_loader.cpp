@@ -5,40 +5,34 @@
 //   1  a Wavefront OBJ surface: read_obj, then add_surface_mesh
 //   2  a TetGen pair: .node, a NUL byte, .ele: read_tetgen, then add_tet_mesh
 //   3  a Gmsh .msh (2.2 or 4.1): read_gmsh, then add_tet_mesh
+//   4  a rule or measure of an experiment file (experiments/expression.hpp): parsed, its names
+//      listed, then evaluated over a scope of a few scalars (0, 1, inf, NaN) and a series
 // Refusals (ConfigError, MeshError, and the other std::exception the builders throw) are the
 // expected outcome of bad input; a crash, a sanitizer report, a leak or a timeout is a finding.
 // scripts/fuzz.sh builds it (clang, -fsanitize=fuzzer,address,undefined) and runs it, seeded
 // with the catalog and tests/bad_input/.
-#include <unistd.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "config/config.hpp"
 #include "core/mesh_io.hpp"
 #include "core/model.hpp"
+#include "experiments/expression.hpp"
+#include "tests/fuzz/work_dir.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path& work_dir() {
-  static const fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() / ("pbdbench-fuzz-" + std::to_string(::getpid()));
-    fs::create_directories(d);
-    std::atexit([] {
-      std::error_code ec;
-      fs::remove_all(work_dir(), ec);
-    });
-    return d;
-  }();
-  return dir;
-}
+const fs::path& work_dir() { return pbdbench::fuzz::work_dir("pbdbench-fuzz"); }
 
 fs::path write(const std::string& name, std::string_view bytes) {
   const fs::path p = work_dir() / name;
@@ -46,9 +40,33 @@ fs::path write(const std::string& name, std::string_view bytes) {
   return p;
 }
 
+// What the names of a fuzzed expression stand for: a, b, zero, big (inf) and nan, and the
+// series s and time over five rows; any other name is unknown (a refusal).
+class FuzzScope final : public pbdbench::experiments::Scope {
+ public:
+  std::optional<double> scalar(const std::string& name) const override {
+    if (name == "a") return 1.0;
+    if (name == "b") return -2.5;
+    if (name == "zero") return 0.0;
+    if (name == "big") return std::numeric_limits<double>::infinity();
+    if (name == "nan") return std::numeric_limits<double>::quiet_NaN();
+    return std::nullopt;
+  }
+  const std::vector<double>* series(const std::string& name) const override {
+    if (name == "time") return &time_;
+    if (name == "s") return &s_;
+    return nullptr;
+  }
+  const std::vector<double>* times() const override { return &time_; }
+
+ private:
+  std::vector<double> time_ = {0.0, 0.1, 0.2, 0.3, 0.4};
+  std::vector<double> s_ = {1.0, -1.0, 2.0, std::numeric_limits<double>::infinity(), 0.5};
+};
+
 void run(std::uint8_t mode, std::string_view bytes) {
   using namespace pbdbench;
-  switch (mode % 4) {
+  switch (mode % 5) {
     case 0: {
       const config::Config c = config::load_text(std::string(bytes), work_dir() / "fuzz.toml");
       (void)config::build_scene(c);
@@ -73,6 +91,15 @@ void run(std::uint8_t mode, std::string_view bytes) {
       const TetMesh mesh = read_gmsh(write("fuzz.msh", bytes).string());
       Model m;
       add_tet_mesh(m, mesh, TetBodySpec{}, "fuzz.msh");
+      break;
+    }
+    case 4: {
+      const experiments::Expression e{std::string(bytes)};
+      (void)e.scalar_names();
+      (void)e.series_names();
+      const FuzzScope scope;
+      (void)e.evaluate_checked(scope);
+      (void)e.nan_names(scope);
       break;
     }
   }
