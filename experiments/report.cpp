@@ -130,8 +130,10 @@ std::string counterfactual_line(const PartResult& p, ExperimentKind kind) {
     if (p.can_fail == CanFail::NoCounterfactual) return "- Could fail: not shown (no counterfactual).\n";
     return "";
   }
+  std::string why = p.counterfactual_why;
+  while (!why.empty() && (why.back() == '.' || why.back() == ' ')) why.pop_back();  // the line adds its own
   std::string out = fmt::format("- Counterfactual: {} — {}. On the variant the rule gives **{}**", cell(p.counterfactual_variant),
-                                p.counterfactual_why, verdict_word(p.counterfactual_verdict, kind));
+                                why, verdict_word(p.counterfactual_verdict, kind));
   if (!p.counterfactual_reason.empty()) out += " (" + p.counterfactual_reason + ")";
   if (!p.counterfactual_measured.empty()) out += "; measured there: " + p.counterfactual_measured;
   out += fmt::format(". Could fail: {}.\n", to_string(p.can_fail));
