@@ -77,12 +77,14 @@ constexpr double kReferenceBytes = 16384;     // per constraint or particle: spa
 // small catalog scenes (`/usr/bin/time -v pbdbench run SCENE --set time.duration=0.25`), 21 to
 // 27 MB in the test's child processes.
 constexpr double kBaseBytes = 24.0 * 1024 * 1024;
-// The export (runfile/xdmf.cpp) holds every frame's positions and velocities (48 bytes a
-// particle) and two fields a cell (16 bytes a cell and frame), and its cell tables
-// (kExportCellBytes a cell): the 64 x 64 cloth's peak grows by 0.57 MB a frame (160 MB with 183
-// frames, 399 MB with 603), as 48 x 4096 + 16 x 23,940 bytes. Its data file holds per frame
-// positions, displacement and velocity (72 bytes a particle), the two fields (16 bytes a cell),
-// and kExportFrameBytes of HDF5 objects, uncompressed (gzip makes it 0.6 to 0.9 of that).
+// The export (runfile/xdmf.cpp) reads the run file's frames one at a time
+// (runfile/frame_reader.hpp): it holds one frame's positions, velocities and output buffer (72
+// bytes a particle), its two fields (16 bytes a cell) and its cell tables (kExportCellBytes a
+// cell), whatever the run's length. (Holding every frame, the 64 x 64 cloth's export grew by 0.57
+// MB a frame, 48 x 4096 + 16 x 23,940 bytes: 399 MB with 603 frames, 2.1 GB with 3,603.) Its data
+// file holds per frame positions, displacement and velocity (72 bytes a particle), the two fields
+// (16 bytes a cell) and kExportFrameBytes of HDF5 objects, uncompressed (gzip makes it 0.6 to 0.9
+// of that).
 constexpr double kExportCellBytes = 256;
 constexpr double kExportFrameBytes = 8192;
 constexpr double kMaxSeconds = 24 * 3600.0;
@@ -269,7 +271,7 @@ RunPlan plan_run(const Model& model, const SolverOptions& solver, const config::
     const double cells = export_cells(model), frames = static_cast<double>(plan.frames);
     plan.export_bytes = frames * (72.0 * n + 16.0 * cells + kExportFrameBytes);
     plan.export_memory_bytes = kBaseBytes + n * kParticleBytes + m * kConstraintBytes + plan.mesh_bytes +
-                               cells * kExportCellBytes + frames * (48.0 * n + 16.0 * cells);
+                               cells * kExportCellBytes + 72.0 * n + 16.0 * cells;
     plan.memory_bytes = std::max(plan.memory_bytes, plan.export_memory_bytes);
   }
   return plan;

@@ -19,6 +19,7 @@
 // an exclusive lock on "<path>.lock" for the run's life (runfile/output_guard.hpp) and no HDF5
 // lock on <path>, so readers may open it while the run is still going.
 #include "runfile/run_file.hpp"
+#include "runfile/frame_reader.hpp"
 
 #include "runfile/frame_compressor.hpp"
 
@@ -988,6 +989,59 @@ std::vector<AttributeInfo> run_root_attributes() {
   layout::describe(kRoot, out);
   for (AttributeInfo& a : provenance_attributes()) out.push_back(std::move(a));
   return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Frames one at a time (frame_reader.hpp).
+
+std::vector<double> for_each_frame(const std::filesystem::path& path, bool velocities, const FrameVisitor& visit) {
+  H5::Exception::dontPrint();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) fail(path, "no such file");
+  std::vector<double> times;
+  std::optional<H5::H5File> file;
+  std::optional<H5::DataSet> sets[2];  // positions, velocities
+  H5::DataSpace spaces[2];
+  hsize_t n = 0;
+  try {
+    file.emplace(path.string(), H5F_ACC_RDONLY);
+    if (!file->nameExists("/frames")) return times;
+    const H5::Group g = file->openGroup("/frames");
+    if (g.nameExists("time")) times = h5::read_doubles(g.openDataSet("time"));
+    const char* names[2] = {"positions", "velocities"};
+    for (int k = 0; k < 2; ++k) {
+      if (!g.nameExists(names[k]) || (k == 1 && !velocities)) continue;
+      sets[k].emplace(g.openDataSet(names[k]));
+      spaces[k] = sets[k]->getSpace();
+      hsize_t dims[3] = {0, 0, 0};
+      if (spaces[k].getSimpleExtentNdims() != 3) fail(path, std::string("/frames/") + names[k] + " is not 3-D");
+      spaces[k].getSimpleExtentDims(dims);
+      if (dims[2] != 3) fail(path, std::string("/frames/") + names[k] + " is not (F, n, 3)");
+      if (dims[0] != times.size())
+        fail(path, std::to_string(times.size()) + " frame times for " + std::to_string(dims[0]) + " frames of " + names[k]);
+      if (k == 1 && dims[1] != n) fail(path, "/frames/velocities and /frames/positions differ in their particles");
+      n = dims[1];
+    }
+  } catch (const H5::Exception& e) {
+    fail(path, "cannot read: " + h5_message(e));
+  }
+  if (!sets[0]) return times;
+  Points x(static_cast<Eigen::Index>(n), 3), v(static_cast<Eigen::Index>(n), 3);
+  for (std::size_t f = 0; f < times.size(); ++f) {
+    try {
+      for (int k = 0; k < 2; ++k) {
+        if (!sets[k] || n == 0) continue;
+        const hsize_t count[3] = {1, n, 3}, start[3] = {f, 0, 0};
+        spaces[k].selectHyperslab(H5S_SELECT_SET, count, start);
+        const H5::DataSpace mem(3, count);
+        sets[k]->read(k == 0 ? x.data() : v.data(), H5::PredType::NATIVE_DOUBLE, mem, spaces[k]);
+      }
+    } catch (const H5::Exception& e) {
+      fail(path, "cannot read frame " + std::to_string(f) + ": " + h5_message(e));
+    }
+    visit(f, times[f], x, sets[1] ? &v : nullptr);
+  }
+  return times;
 }
 
 }  // namespace pbdbench

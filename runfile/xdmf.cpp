@@ -17,6 +17,7 @@
 #include "core/constraint_functions.hpp"
 #include "metrics/metrics.hpp"
 #include "runfile/output_guard.hpp"
+#include "runfile/frame_reader.hpp"
 #include "runfile/run_file.hpp"
 
 namespace pbdbench {
@@ -225,20 +226,24 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   claim_temporary(xdmf, argument);  // both temporaries before anything is written
   claim_temporary(out.data, argument);
 
-  // The run's frames, through the run file's reader (run_file.hpp).
+  // The run's frames, through the run file's reader (run_file.hpp): here their times and the last
+  // frame (its particle count checked before anything is written); below one frame at a time
+  // (frame_reader.hpp), so that the export's memory does not grow with the run's length.
   const int n = model.particle_count();
   RunFileParts parts;
   parts.series = false;
-  parts.frames = RunFileParts::Frames::All;
+  parts.frames = RunFileParts::Frames::Last;
   parts.velocities = true;  // copied per frame: a reader of the XDMF needs no hyperslab
   const RunFileData run_data = read_run_file(run_file, parts);
   const std::vector<double>& times = run_data.frame_time;
-  if (run_data.frames.size() != times.size()) fail(run_file, "has no frames");
-  for (const Points& frame : run_data.frames)
+  if (times.empty() || run_data.frames.size() != 1) fail(run_file, "has no frames");
+  const auto check_frame = [&](const Points& frame) {
     if (frame.rows() != n)
       fail(run_file, fmt::format("frames of {} particles, the scene has {}: not this scene's run file",
                                  frame.rows(), n));
-  const bool velocities = run_data.has_velocities && run_data.velocities.size() == times.size();
+  };
+  check_frame(run_data.frames.back());
+  const bool velocities = run_data.has_velocities && run_data.velocities.size() == 1;
   const hsize_t F = times.size();
   out.frames = static_cast<long>(F);
 
@@ -297,11 +302,11 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   const hsize_t N = static_cast<hsize_t>(n);
   std::vector<double> inv_mass(model.inv_mass), pinned(N);
   for (int i = 0; i < n; ++i) pinned[static_cast<size_t>(i)] = model.inv_mass[static_cast<size_t>(i)] == 0.0 ? 1.0 : 0.0;
-  std::vector<double> change(F * C), cell_err(F * C);  // per frame, all cells in the mixed order
+  std::vector<double> change(C), cell_err(C);  // of one frame, all cells in the mixed order
   auto tri_area = [](const Vec3& a, const Vec3& b, const Vec3& c) { return 0.5 * (b - a).cross(c - a).norm(); };
   std::vector<double> err(model.constraints.size()), particle_err(static_cast<size_t>(n));
-  for (hsize_t f = 0; f < F; ++f) {
-    const Points& x = run_data.frames[f];
+  // The cell fields of the frame at x, into change and cell_err.
+  const auto cell_fields = [&](const Points& x) {
     for (size_t j = 0; j < err.size(); ++j) err[j] = constraint_error(model, model.constraints[j], x);
     auto worst = [&](const std::vector<int>& cs) {
       double w = 0.0;
@@ -327,25 +332,25 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
           w = std::max(w, e);
         }
       }
-      cell_err[f * C + c] = w;
+      cell_err[c] = w;
     }
     const Points& X = model.rest_positions;
     for (size_t t = 0; t < K; ++t) {
       const auto [a, b, c, d] = tets.cells[t];
       const double v0 = tet_signed_volume(X.row(a), X.row(b), X.row(c), X.row(d));
-      change[f * C + t] = v0 != 0.0 ? tet_signed_volume(x.row(a), x.row(b), x.row(c), x.row(d)) / v0 - 1.0 : kNaN;
+      change[t] = v0 != 0.0 ? tet_signed_volume(x.row(a), x.row(b), x.row(c), x.row(d)) / v0 - 1.0 : kNaN;
     }
     for (size_t t = 0; t < T; ++t) {
       const auto [a, b, c] = tris.cells[t];
       const double a0 = tri_area(X.row(a), X.row(b), X.row(c));
-      change[f * C + K + t] = a0 > 0.0 ? tri_area(x.row(a), x.row(b), x.row(c)) / a0 - 1.0 : kNaN;
+      change[K + t] = a0 > 0.0 ? tri_area(x.row(a), x.row(b), x.row(c)) / a0 - 1.0 : kNaN;
     }
     for (size_t e = 0; e < E; ++e) {
       const auto [a, b] = edges.cells[e];
       const double l0 = (X.row(a) - X.row(b)).norm();
-      change[f * C + K + T + e] = l0 > 0.0 ? (x.row(a) - x.row(b)).norm() / l0 - 1.0 : kNaN;
+      change[K + T + e] = l0 > 0.0 ? (x.row(a) - x.row(b)).norm() / l0 - 1.0 : kNaN;
     }
-  }
+  };
 
   // The mixed topology: per cell its XDMF type (6 tetrahedron, 4 triangle, 2 polyline with its
   // node count) and particles.
@@ -366,18 +371,20 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
   bool moving = false;
   for (const SphereCollider& s : model.spheres) moving = moving || s.motion >= 0;
   for (const MeshCollider& mc : model.meshes) moving = moving || mc.motion >= 0;
-  const hsize_t collider_frames = moving ? F : (F > 0 ? 1 : 0);
+  // The colliders' triangles (the same in every frame), and their points at time t (moving, once
+  // a frame; else once, at t = 0), made as the frames are written.
   std::vector<double> collider_points;
   std::vector<int> collider_tris;
   hsize_t CP = 0, CT = 0;
-  for (hsize_t f = 0; f < collider_frames; ++f) {
-    const Mesh m = collider_mesh(model, moving ? times[f] : 0.0, centroid, half);
+  const auto collider_frame = [&](double t) {
+    const Mesh m = collider_mesh(model, t, centroid, half);
     CP = m.points.size();
     CT = m.triangles.size();
+    collider_points.clear();
     for (const Vec3& p : m.points) collider_points.insert(collider_points.end(), {p.x(), p.y(), p.z()});
-    if (f == 0)
-      for (const auto& t : m.triangles) collider_tris.insert(collider_tris.end(), t.begin(), t.end());
-  }
+    return m;
+  };
+  for (const auto& t : collider_frame(0.0).triangles) collider_tris.insert(collider_tris.end(), t.begin(), t.end());
   out.collider_points = static_cast<long>(CP);
 
   // The data file: the topology, and per frame under /frames/NNNNNN/ what the XDMF reads, each
@@ -406,10 +413,13 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
     write_ints(h, "collider_triangles", {CT, 3}, collider_tris.data());
     h.createGroup("frames");
     std::vector<double> buffer(N * 3);
-    for (hsize_t f = 0; f < F; ++f) {
+    const std::vector<double> read_times = for_each_frame(run_file, velocities, [&](size_t f, double t, const Points& x,
+                                                                                    const Points* v) {
+      if (f >= F) fail(run_file, "more frames than frame times");
+      check_frame(x);
+      cell_fields(x);
       const std::string g = frame_group(f);
       h.createGroup(g);
-      const Points& x = run_data.frames[f];
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = x(i, k);
       write_dataset(h, g + "/positions", {N, 3}, buffer.data(), true);
@@ -417,17 +427,19 @@ XdmfSummary write_xdmf(const fs::path& run_file, const Model& model, const fs::p
         for (int k = 0; k < 3; ++k)
           buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = x(i, k) - model.rest_positions(i, k);
       write_dataset(h, g + "/displacement", {N, 3}, buffer.data(), true);
-      if (velocities) {
-        const Points& v = run_data.velocities[f];
+      if (velocities && v != nullptr) {
         for (int i = 0; i < n; ++i)
-          for (int k = 0; k < 3; ++k) buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = v(i, k);
+          for (int k = 0; k < 3; ++k) buffer[static_cast<size_t>(i) * 3 + static_cast<size_t>(k)] = (*v)(i, k);
         write_dataset(h, g + "/velocity", {N, 3}, buffer.data(), true);
       }
-      write_dataset(h, g + "/change", {C}, change.data() + f * C, true);
-      write_dataset(h, g + "/constraint_error", {C}, cell_err.data() + f * C, true);
-      if (moving || f == 0)
-        write_dataset(h, g + "/collider_points", {CP, 3}, collider_points.data() + (moving ? f : 0) * CP * 3, true);
-    }
+      write_dataset(h, g + "/change", {C}, change.data(), true);
+      write_dataset(h, g + "/constraint_error", {C}, cell_err.data(), true);
+      if (moving || f == 0) {
+        if (moving) collider_frame(t);
+        write_dataset(h, g + "/collider_points", {CP, 3}, collider_points.data(), true);
+      }
+    });
+    if (read_times.size() != F) fail(run_file, "its frames changed while they were exported");
   } catch (const H5::Exception& e) {
     fail(out.data, "cannot write: " + e.getDetailMsg());
   }
