@@ -24,6 +24,7 @@
 #include <iostream>
 #include <limits>
 #include <new>
+#include <system_error>
 
 #include <fmt/format.h>
 
@@ -743,6 +744,17 @@ int main(int argc, char** argv) {
     std::cerr << "pbdbench " << (used.empty() ? std::string("") : used.front()->get_name())
               << ": out of memory (std::bad_alloc) while " << current_stage()
               << " (more than this machine or its limit gives the process)\n";
+    return kExitFailure;
+  } catch (const std::system_error& e) {
+    // A thread or a mapping refused for want of memory ("Resource temporarily unavailable")
+    // says nothing of where: the stage names it (a file's error names its file).
+    if (dynamic_cast<const fs::filesystem_error*>(&e) != nullptr) {
+      std::cerr << "pbdbench: " << e.what() << "\n";
+      return kExitFailure;
+    }
+    const auto& used = app.get_subcommands();
+    std::cerr << "pbdbench " << (used.empty() ? std::string("") : used.front()->get_name()) << ": " << e.what()
+              << " while " << current_stage() << "\n";
     return kExitFailure;
   } catch (const std::exception& e) {
     std::cerr << "pbdbench: " << e.what() << "\n";
