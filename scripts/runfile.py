@@ -290,16 +290,11 @@ def is_viz(path):
 
 
 def without_viz(paths, program):
-    """`paths` without the ParaView data files among them (a folder's *.h5), each passed over
-    with a note on stderr naming `program`."""
-    kept = []
-    for p in paths:
-        if is_viz(p):
-            print(f"{program}: passed over {p} (the ParaView fields of a run's export, not a run file)",
-                  file=sys.stderr)
-        else:
-            kept.append(p)
-    return kept
+    """`paths` without the ParaView data files among them (a folder's *.h5 holds each run's
+    RUN.viz.h5 beside RUN.h5), passed over silently: skipping them is by design, and a line per
+    run would read like a failure. `program` is kept for the callers' signature."""
+    del program
+    return [p for p in paths if not is_viz(p)]
 
 
 def load_viz(path):
