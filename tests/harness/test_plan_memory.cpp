@@ -125,6 +125,7 @@ TEST(PlanMemory, TheMemoryEstimateIsWithinAFactorOfTwoOnCatalogScenes) {
     const double written = static_cast<double>(fs::file_size(out.parent_path() / "run.viz.h5"));
     EXPECT_GE(plan.export_bytes, written) << c.scene;
     EXPECT_LT(plan.export_bytes, 2.0 * written) << c.scene;
+    fs::remove_all(out.parent_path());  // kept only where an assertion stopped the test
   }
 }
 
@@ -181,6 +182,7 @@ TEST(PlanMemory, TheExportDoesNotGrowWithTheFrames) {
     EXPECT_LT(exported.peak_bytes, plan.memory_bytes * 2.0);
     EXPECT_GT(exported.peak_bytes, plan.export_memory_bytes / 2.0);
     peaks.push_back(exported.peak_bytes);
+    fs::remove_all(out.parent_path());
   }
   // 30 frames more: 17.4 MB more where the frames were held; 4.4 MB measured, HDF5's metadata
   // cache filling up to its bound (the export of 183 frames peaks at 57.9 MB, of 603 at 58.2 MB:
@@ -222,6 +224,7 @@ TEST(PlanMemory, AMeshColliderIsCounted) {
                            plan.memory_bytes / 1e6, plan.mesh_bytes / 1e6, r.peak_bytes / 1e6, ratio);
   EXPECT_GT(ratio, 0.5);
   EXPECT_LT(ratio, 2.0);
+  fs::remove_all(dir);
 }
 
 }  // namespace
