@@ -320,8 +320,9 @@ class Messages(unittest.TestCase):
     def test_a_planned_run_beyond_the_machine_is_refused_unless_forced(self):
         with tempfile.TemporaryDirectory() as d:
             out = os.path.join(d, "x.h5")
+            # 10^10 projections a step for 1200 steps: about 43 hours, beyond the one-day limit.
             args = ["hanging_chain", "--set", "scene.links=100000", "--set", "solver.iterations=100000",
-                    "--out", out, "--quiet"]
+                    "--set", "time.duration=20", "--out", out, "--quiet"]
             r = pbdbench("run", *args)
             self.assertEqual(r.returncode, 2, r.stderr)
             self.assertIn("does not fit this machine", r.stderr)
