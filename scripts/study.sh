@@ -2,8 +2,9 @@
 # The README's first command: installs what is missing, builds what is stale, runs the default
 # study (studies/default/*.toml) on small scenes, writes one HDF5 file per run under
 # results/study/, draws the plots as PNG, and prints a table of what was measured.
-# Then the seed article's claims, quick tier (claims/: 22 experiments, a few seconds): their
-# verdicts are printed and their report and figures written to results/claims/quick/.
+# Then the seed article's claims, quick tier (claims/: every part's runs with its counterfactual
+# variants, each timing group in 3 processes: minutes on two cores, not seconds): their verdicts
+# are printed and their report and figures written to results/claims/quick/.
 # A second run reuses every run file made by the same build with the same configuration.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
