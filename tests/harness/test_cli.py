@@ -466,6 +466,9 @@ quote = "落下"
 translation = "falls"
 judges = "method"
 rule = "drop > 0"
+[part.counterfactual]
+why = "without gravity the particle released at rest does not fall"
+runs = { xpbd = { "gravity" = [0.0, 0.0, 0.0] } }
 [figure]
 kind = "series"
 series = "potential_energy"
@@ -480,7 +483,8 @@ runs = ["xpbd"]
         self.assertIn("S9.1    supported", r.stdout)
         with open(os.path.join(out, "README.md")) as f:
             report = f.read()
-        self.assertIn("| [S9.1](#s91) | c | 1 supported | **supported** | not registered |", report)
+        self.assertIn("| [S9.1](#s91) | c | 1 supported | **supported** | not registered; rules written before any result |", report)
+        self.assertIn("On the variant the rule gives **contradicted**", report)  # its counterfactual flipped
         self.assertIn("1 part in the article's regime: 1 supported", report)
         self.assertTrue(os.path.exists(os.path.join(out, "figures", "S9.1.png")))
         with open(os.path.join(out, "claims.json")) as f:
@@ -537,6 +541,9 @@ quote = "稳"
 translation = "holds"
 judges = "method"
 rule = "err < 0.1"
+[part.counterfactual]
+why = "links a hundred million times softer stretch by half their length in 0.1 s"
+runs = { shuffled = { "scene.compliance" = 1.0 } }
 """)
         self.write_index(["S9.3"])
         runs = os.path.join(self.dir, "runs")
@@ -546,20 +553,20 @@ rule = "err < 0.1"
         for p in shards:
             out, err = p.communicate(timeout=300)
             self.assertEqual(p.returncode, 0, out + err)
-            self.assertIn("2 runs made, 0 failed", out)
+            self.assertIn("4 runs made, 0 failed", out)  # 6 trials and their 6 counterfactual variants, over 3 shards
         for i in range(3):
             with open(os.path.join(runs, f"index.shard-{i}-of-3.json")) as f:
                 index = json.load(f)
-            self.assertEqual(len(index["runs"]), 6)
+            self.assertEqual(len(index["runs"]), 12)
             mine = [r for k, r in enumerate(index["runs"]) if k % 3 == i]
             self.assertTrue(all(r["status"] == "complete" for r in mine), mine)
-        # The merge: every run file is current, nothing runs again; the index lists all six.
+        # The merge: every run file is current, nothing runs again; the index lists all twelve.
         r = pbdbench(*args, "--out", os.path.join(self.dir, "report"), "--jobs", "2")
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-        self.assertIn("6 runs, 0 to run", r.stderr)
+        self.assertIn("12 runs, 0 to run", r.stderr)
         self.assertIn("S9.3    supported", r.stdout)
         with open(os.path.join(runs, "index.json")) as f:
-            self.assertEqual([x["status"] for x in json.load(f)["runs"]], ["complete"] * 6)
+            self.assertEqual([x["status"] for x in json.load(f)["runs"]], ["complete"] * 12)
         # The job array (--slurm) is test_slurm_cli.py's.
 
     def test_regress_update_compare_against_and_a_worse_metric(self):
