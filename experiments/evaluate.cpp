@@ -204,7 +204,6 @@ double combine(const std::string& mode, std::vector<double> values) {
 std::string trial_stem(const RunSpec& run, int trials, int trial, const std::string& name) {
   return trials > 1 || !run.trial_keys.empty() ? fmt::format("{}-{:03d}", name, trial) : name;
 }
-std::string trial_stem(const RunSpec& run, int trials, int trial) { return trial_stem(run, trials, trial, run.name); }
 
 // A run's trials, made or read: their files are <dir>/<stem>[-<trial>].h5.
 RunResult make_run(const Experiment& ex, const RunSpec& run, const fs::path& dir, const std::string& stem,
@@ -327,45 +326,33 @@ bool parse_verdict(const std::string& text, Verdict& out) {
   return false;
 }
 
+// The runs of one run of `source` (the experiment or one of its variants), under `key` in `dir`.
+static void plan_trials(const Experiment& ex, const Experiment& source, const RunSpec& run, const std::string& key,
+                 const fs::path& dir, const EvaluateOptions& options, std::vector<PlannedRun>& out) {
+  if (source.timing_only(run)) return;
+  const int trials = source.trials(run, options.tier);
+  for (int trial = 0; trial < trials; ++trial) {
+    PlannedRun p;
+    p.experiment = ex.id;
+    p.run = key;
+    p.trial = trial;
+    p.scenario = config::resolve_scenario(source.scenario_of(run)).string();
+    p.overrides = source.overrides(run, options.tier, trial);
+    p.file = dir / (trial_stem(run, trials, trial, key) + ".h5");
+    const config::Config cfg = config::load(p.scenario, p.overrides);
+    check_solver_names(cfg);
+    p.config_toml = cfg.to_toml();
+    p.current = run_is_current(p.file, p.config_toml);
+    out.push_back(std::move(p));
+  }
+}
+
 std::vector<PlannedRun> plan_runs(const Experiment& ex, const EvaluateOptions& options) {
   std::vector<PlannedRun> out;
-  for (const RunSpec& run : ex.runs) {
-    if (ex.timing_only(run)) continue;
-    const int trials = ex.trials(run, options.tier);
-    for (int trial = 0; trial < trials; ++trial) {
-      PlannedRun p;
-      p.experiment = ex.id;
-      p.run = run.name;
-      p.trial = trial;
-      p.scenario = config::resolve_scenario(ex.scenario_of(run)).string();
-      p.overrides = ex.overrides(run, options.tier, trial);
-      p.file = options.runs_dir / ex.id / (trial_stem(run, trials, trial) + ".h5");
-      const config::Config cfg = config::load(p.scenario, p.overrides);
-      check_solver_names(cfg);
-      p.config_toml = cfg.to_toml();
-      p.current = run_is_current(p.file, p.config_toml);
-      out.push_back(std::move(p));
-    }
-  }
+  for (const RunSpec& run : ex.runs) plan_trials(ex, ex, run, run.name, options.runs_dir / ex.id, options, out);
   for (const VariedRun& v : varied_runs(ex)) {
     const Experiment variant = ex.with_variant({*v.variant});
-    const RunSpec& run = *variant.find_run(v.run);
-    if (variant.timing_only(run)) continue;
-    const int trials = variant.trials(run, options.tier);
-    for (int trial = 0; trial < trials; ++trial) {
-      PlannedRun p;
-      p.experiment = ex.id;
-      p.run = v.key;
-      p.trial = trial;
-      p.scenario = config::resolve_scenario(variant.scenario_of(run)).string();
-      p.overrides = variant.overrides(run, options.tier, trial);
-      p.file = options.runs_dir / ex.id / "counterfactual" / (trial_stem(run, trials, trial, v.key) + ".h5");
-      const config::Config cfg = config::load(p.scenario, p.overrides);
-      check_solver_names(cfg);
-      p.config_toml = cfg.to_toml();
-      p.current = run_is_current(p.file, p.config_toml);
-      out.push_back(std::move(p));
-    }
+    plan_trials(ex, variant, *variant.find_run(v.run), v.key, options.runs_dir / ex.id / "counterfactual", options, out);
   }
   return out;
 }
